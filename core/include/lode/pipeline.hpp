@@ -1,0 +1,115 @@
+// A pipeline: blocks loaded from plugins, wired by name, ordered, with one output arena.
+//
+// Loading validates everything before anything starts and collects every problem with its
+// file:line:column (Diagnostics). The cycle (run_cycle) walks a precomputed list of
+// operations: every io block's read phase, the other blocks in topological order, then
+// every io block's write phase (DESIGN.md §2).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lode/block.hpp"
+#include "lode/diagnostics.hpp"
+#include "lode/histogram.hpp"
+#include "lode/json.hpp"
+#include "lode/plugin_loader.hpp"
+
+namespace lode {
+
+enum class OverrunPolicy { skip, catch_up, stop };
+
+struct RealtimeSettings {
+  int priority = 0;          ///< SCHED_FIFO priority 1..99; 0 = normal scheduling
+  int cpu = -1;              ///< CPU to pin the RT thread to; -1 = any
+  bool lock_memory = false;  ///< mlockall + prefault
+  OverrunPolicy overrun_policy = OverrunPolicy::skip;
+  std::uint64_t max_overruns = 0;  ///< stop with a fault after this many; 0 = never
+};
+
+struct SignalRef {
+  std::string block;
+  std::string port;
+  const double* data = nullptr;
+  const Elements* elements = nullptr;
+  [[nodiscard]] std::size_t size() const { return elements ? elements->size() : 0; }
+  [[nodiscard]] std::string name() const { return block + "." + port; }
+};
+
+/// What `lode run` shows live and analyses at the end (the `monitor:` section).
+struct MonitorSpec {
+  std::optional<SignalRef> show;       ///< live status line
+  std::optional<SignalRef> estimate;   ///< what the controllers see
+  std::optional<SignalRef> truth;      ///< the true state (simulation)
+  std::optional<SignalRef> reference;  ///< the commanded trajectory
+  std::vector<SignalRef> record;       ///< extra signals kept for the summary
+  double hold_start_s = 0.0;           ///< window for the position-noise statistics
+  double hold_end_s = 0.0;
+  double settle_band = 0.02;           ///< settling band, fraction of the step
+};
+
+class Pipeline {
+ public:
+  struct Op {
+    Block* block = nullptr;
+    std::string label;  ///< "glsdc" or "stage.read" / "stage.write"
+    bool write_phase = false;
+    std::unique_ptr<Histogram> exec_time;
+  };
+
+  struct CycleResult {
+    StepStatus status = StepStatus::ok;
+    int failed_op = -1;  ///< index into ops() when status is fault
+  };
+
+  /// Load, configure and bind. Returns nullptr when diagnostics is not empty.
+  static std::unique_ptr<Pipeline> load_file(const std::string& path, PluginRegistry& registry,
+                                             Diagnostics& diagnostics);
+  /// `feeds` (test support): outputs of a pseudo-block named "feed" whose values the caller
+  /// writes through signal("feed.<name>"), so a block under test is wired like any other.
+  static std::unique_ptr<Pipeline> load_text(const std::string& yaml, const std::string& label,
+                                             PluginRegistry& registry, Diagnostics& diagnostics,
+                                             const std::vector<std::pair<std::string, Elements>>& feeds = {});
+
+  ~Pipeline();
+  Pipeline(const Pipeline&) = delete;
+  Pipeline& operator=(const Pipeline&) = delete;
+
+  [[nodiscard]] const std::string& name() const;
+  [[nodiscard]] const std::string& source_file() const;
+  [[nodiscard]] double rate_hz() const;
+  [[nodiscard]] std::int64_t period_ns() const;
+  [[nodiscard]] const RealtimeSettings& realtime() const;
+  [[nodiscard]] std::optional<double> default_duration_s() const;
+  [[nodiscard]] const MonitorSpec& monitor() const;
+
+  Status activate();
+  void deactivate() noexcept;
+
+  /// One cycle. RT-safe. When `time_ops` is set each op's execution time is recorded.
+  /// On a fault every io block is driven safe before returning.
+  CycleResult run_cycle(const Tick& tick, bool time_ops) noexcept;
+  void drive_safe() noexcept;
+
+  [[nodiscard]] std::vector<Op>& ops();
+  [[nodiscard]] const std::vector<Op>& ops() const;
+  /// "block.port" -> the output, if it exists.
+  [[nodiscard]] std::optional<SignalRef> signal(const std::string& ref) const;
+  /// Every output of every block.
+  [[nodiscard]] std::vector<SignalRef> signals() const;
+  /// The block instance named `name` (nullptr if none).
+  [[nodiscard]] Block* block(const std::string& name) const;
+  /// The resolved pipeline with every derived quantity.
+  [[nodiscard]] Json describe() const;
+
+  struct Impl;
+
+ private:
+  Pipeline();
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace lode

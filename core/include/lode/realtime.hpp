@@ -1,0 +1,29 @@
+// Real-time settings of the host and of the RT thread, applied with graceful degradation.
+//
+// Each refusal (no privilege, no PREEMPT_RT, no such CPU) becomes a clear warning that the
+// run reports, not a failure: a researcher's laptop still runs the pipeline, only with
+// worse timing, and `lode rtcheck` explains how to fix the host.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "lode/json.hpp"
+#include "lode/pipeline.hpp"
+
+namespace lode {
+
+/// Process-wide part: mlockall(MCL_CURRENT|MCL_FUTURE) and /dev/cpu_dma_latency = 0.
+/// Returns warnings. Call before starting the RT thread.
+std::vector<std::string> apply_process_realtime(const RealtimeSettings& settings);
+
+/// Thread part, called on the RT thread: SCHED_FIFO priority, CPU affinity, prefaulted stack.
+std::vector<std::string> apply_thread_realtime(const RealtimeSettings& settings);
+
+/// Undo the process-wide part (close the DMA latency request).
+void release_process_realtime();
+
+/// What `lode rtcheck` prints: kernel preemption model, limits, privileges, each with advice.
+Json realtime_host_report();
+
+}  // namespace lode

@@ -1,0 +1,127 @@
+// The cycle executive: one rate group, a real or simulated clock, timing statistics.
+//
+// Real clock: a dedicated thread with the pipeline's RT settings wakes on absolute
+// deadlines (clock_nanosleep(TIMER_ABSTIME) on CLOCK_MONOTONIC), measures its wake-up
+// latency, runs the cycle and accounts overruns; the calling thread stays non-RT and
+// services `on_idle` (status line, draining taps and the RT log) ~20 times a second.
+// Simulated clock: the same cycle runs back to back in the calling thread as fast as the
+// CPU allows, with scheduled times advancing exactly one period per cycle.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "lode/event_log.hpp"
+#include "lode/histogram.hpp"
+#include "lode/pipeline.hpp"
+
+namespace lode {
+
+class Clock {
+ public:
+  virtual ~Clock() = default;
+  virtual std::int64_t now_ns() noexcept = 0;
+  virtual void sleep_until(std::int64_t deadline_ns) noexcept = 0;
+  [[nodiscard]] virtual bool simulated() const noexcept = 0;
+};
+
+class RealClock final : public Clock {
+ public:
+  std::int64_t now_ns() noexcept override;
+  void sleep_until(std::int64_t deadline_ns) noexcept override;
+  [[nodiscard]] bool simulated() const noexcept override { return false; }
+};
+
+class SimulatedClock final : public Clock {
+ public:
+  std::int64_t now_ns() noexcept override { return now_; }
+  void sleep_until(std::int64_t deadline_ns) noexcept override {
+    if (deadline_ns > now_) now_ = deadline_ns;
+  }
+  [[nodiscard]] bool simulated() const noexcept override { return true; }
+
+ private:
+  std::int64_t now_ = 0;
+};
+
+/// Copies chosen signals every cycle into a wait-free single-producer ring for a non-RT
+/// consumer. A full ring drops the record and counts it; it never blocks the producer.
+class SignalTap {
+ public:
+  explicit SignalTap(std::vector<SignalRef> signals, std::size_t capacity_records = 1 << 15);
+  /// RT thread. Record = [cycle, time_s, values of every signal...].
+  void capture(std::uint64_t cycle, std::int64_t time_ns) noexcept;
+  /// Consumer thread: append every available record to `out`; returns records appended.
+  std::size_t drain(std::vector<double>& out);
+  [[nodiscard]] std::size_t stride() const { return stride_; }
+  [[nodiscard]] const std::vector<SignalRef>& signals() const { return signals_; }
+  [[nodiscard]] std::uint64_t dropped() const { return dropped_.load(std::memory_order_relaxed); }
+  /// Column of signal i's first element within a record.
+  [[nodiscard]] std::size_t column(std::size_t signal_index) const { return columns_[signal_index]; }
+
+ private:
+  std::vector<SignalRef> signals_;
+  std::vector<std::size_t> columns_;
+  std::size_t stride_ = 2;
+  std::size_t capacity_ = 0;  // records
+  std::vector<double> buffer_;
+  alignas(64) std::atomic<std::uint64_t> head_{0};  // written by producer
+  alignas(64) std::atomic<std::uint64_t> tail_{0};  // written by consumer
+  alignas(64) std::atomic<std::uint64_t> dropped_{0};
+};
+
+struct RunStats {
+  std::atomic<std::uint64_t> cycles{0};
+  std::atomic<std::uint64_t> overruns{0};       ///< cycles that ended after the next deadline
+  std::atomic<std::uint64_t> missed_periods{0};  ///< periods skipped under overrun_policy skip
+  std::atomic<std::int64_t> last_time_ns{0};
+  Histogram wake_latency;  ///< actual wake-up minus deadline (real clock only)
+  Histogram cycle_time;    ///< whole cycle execution time
+};
+
+struct RunResult {
+  bool faulted = false;
+  std::string fault;  ///< "block: reason"
+  bool stopped_by_request = false;
+  double wall_s = 0.0;
+  std::vector<std::string> warnings;  ///< RT settings the host refused, etc.
+};
+
+class Scheduler {
+ public:
+  Scheduler(Pipeline& pipeline, Clock& clock, EventLog& events);
+
+  void add_tap(SignalTap* tap) { taps_.push_back(tap); }
+  /// Measure per-op execution time (two clock reads per op).
+  void set_time_ops(bool on) { time_ops_ = on; }
+
+  /// Run `cycles` cycles (0 = until `stop` is set). `on_idle` runs on the calling thread,
+  /// never on the RT thread. The pipeline must be active.
+  RunResult run(std::uint64_t cycles, const std::atomic<bool>& stop,
+                const std::function<void()>& on_idle);
+
+  [[nodiscard]] const RunStats& stats() const { return stats_; }
+
+ private:
+  RunResult run_simulated(std::uint64_t cycles, const std::atomic<bool>& stop,
+                          const std::function<void()>& on_idle);
+  RunResult run_real(std::uint64_t cycles, const std::atomic<bool>& stop,
+                     const std::function<void()>& on_idle);
+  /// One cycle; false on fault (result filled).
+  bool cycle(const Tick& tick, RunResult& result) noexcept;
+
+  Pipeline& pipeline_;
+  Clock& clock_;
+  EventLog& events_;
+  std::vector<SignalTap*> taps_;
+  bool time_ops_ = true;
+  RunStats stats_;
+  // Fault details written by the RT thread, read after it joins.
+  int fault_op_ = -1;
+};
+
+}  // namespace lode

@@ -1,0 +1,369 @@
+#include "lode/params.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "params_node.hpp"
+
+namespace lode {
+
+namespace detail {
+
+SourceLocation location_of(const YAML::Node& node, const std::string& file) {
+  SourceLocation loc{file, 0, 0};
+  if (node.IsDefined()) {
+    const YAML::Mark mark = node.Mark();
+    if (mark.line >= 0) {
+      loc.line = mark.line + 1;
+      loc.column = mark.column + 1;
+    }
+  }
+  return loc;
+}
+
+Params make_params(const YAML::Node& map, std::string path, std::string file,
+                   Diagnostics* diagnostics, const std::vector<std::string>& ignored_keys) {
+  auto tree = std::make_shared<ParamsTree>();
+  tree->diagnostics = diagnostics;
+  tree->file = std::move(file);
+  auto node = std::make_shared<ParamsNode>();
+  node->node = map;
+  node->path = std::move(path);
+  node->tree = tree;
+  for (const auto& k : ignored_keys) node->read_keys.insert(k);
+  tree->maps.push_back(node);
+  return Params(node);
+}
+
+void report_unread_keys(const Params& root) {
+  const auto& tree = root.node()->tree;
+  for (const auto& weak : tree->maps) {
+    auto n = weak.lock();
+    if (!n || !n->node.IsMap()) continue;
+    std::vector<std::string> known(n->read_keys.begin(), n->read_keys.end());
+    for (const auto& kv : n->node) {
+      const auto key = kv.first.as<std::string>();
+      if (n->read_keys.count(key)) continue;
+      std::string msg = "unknown parameter '" + key + "'";
+      // Suggest the closest read key: most unknown keys are typos.
+      std::string best;
+      std::size_t best_score = 0;
+      for (const auto& k : known) {
+        std::size_t common = 0;
+        while (common < k.size() && common < key.size() && k[common] == key[common]) ++common;
+        if (common > best_score) { best_score = common; best = k; }
+      }
+      if (best_score >= 3) msg += " (did you mean '" + best + "'?)";
+      ++tree->errors;
+      tree->diagnostics->add(location_of(kv.first, tree->file), n->path + "." + key, msg);
+    }
+  }
+}
+
+std::set<std::string> read_top_level_keys(const Params& root) { return root.node()->read_keys; }
+
+std::size_t error_count(const Params& root) { return root.node()->tree->errors; }
+
+}  // namespace detail
+
+using detail::location_of;
+using detail::ParamsNode;
+
+namespace {
+
+std::string describe_node(const YAML::Node& n) {
+  if (n.IsScalar()) return "'" + n.Scalar() + "'";
+  if (n.IsSequence()) return "a list";
+  if (n.IsMap()) return "a map";
+  return "nothing";
+}
+
+}  // namespace
+
+Params::Params() = default;
+Params::~Params() = default;
+Params::Params(const Params&) = default;
+Params& Params::operator=(const Params&) = default;
+Params::Params(std::shared_ptr<detail::ParamsNode> node) : node_(std::move(node)) {}
+
+bool Params::has(std::string_view key) const {
+  return node_->node.IsMap() && node_->node[std::string(key)].IsDefined() &&
+         !node_->node[std::string(key)].IsNull();
+}
+
+SourceLocation Params::location(std::string_view key) const {
+  if (!key.empty() && node_->node.IsMap()) {
+    for (const auto& kv : node_->node)
+      if (kv.first.as<std::string>() == key) return location_of(kv.second, node_->tree->file);
+  }
+  return location_of(node_->node, node_->tree->file);
+}
+
+const std::string& Params::path() const { return node_->path; }
+
+void Params::fail(std::string_view key, std::string message) {
+  ++node_->tree->errors;
+  node_->tree->diagnostics->add(location(key), node_->path + "." + std::string(key),
+                                std::move(message));
+}
+
+void Params::fail(std::string message) {
+  ++node_->tree->errors;
+  node_->tree->diagnostics->add(location(), node_->path, std::move(message));
+}
+
+bool Params::check(bool condition, std::string_view key, std::string message) {
+  if (!condition) fail(key, std::move(message));
+  return condition;
+}
+
+bool Params::ok() const { return node_->tree->errors == 0; }
+
+std::vector<std::string> Params::keys() const {
+  std::vector<std::string> out;
+  if (node_->node.IsMap())
+    for (const auto& kv : node_->node) out.push_back(kv.first.as<std::string>());
+  return out;
+}
+
+namespace {
+
+template <typename T>
+bool convert_scalar(const YAML::Node& n, T& out) {
+  if (!n.IsScalar()) return false;
+  try {
+    out = n.as<T>();
+  } catch (const YAML::Exception&) {
+    return false;
+  }
+  if constexpr (std::is_floating_point_v<T>) return std::isfinite(out);
+  return true;
+}
+
+}  // namespace
+
+#define LODE_PARAM_LOOKUP(key)                    \
+  const std::string k(key);                       \
+  node_->read_keys.insert(k);                     \
+  const YAML::Node n = node_->node.IsMap() ? node_->node[k] : YAML::Node();
+
+double Params::number(std::string_view key) {
+  LODE_PARAM_LOOKUP(key);
+  if (!n.IsDefined() || n.IsNull()) {
+    fail(key, "missing required parameter '" + k + "' (a number)");
+    return 0.0;
+  }
+  double v = 0.0;
+  if (!convert_scalar(n, v)) fail(key, "expected a finite number, got " + describe_node(n));
+  return v;
+}
+
+double Params::number(std::string_view key, double fallback) {
+  if (!has(key)) {
+    node_->read_keys.insert(std::string(key));
+    return fallback;
+  }
+  return number(key);
+}
+
+std::int64_t Params::integer(std::string_view key) {
+  LODE_PARAM_LOOKUP(key);
+  if (!n.IsDefined() || n.IsNull()) {
+    fail(key, "missing required parameter '" + k + "' (an integer)");
+    return 0;
+  }
+  std::int64_t v = 0;
+  if (!convert_scalar(n, v)) fail(key, "expected an integer, got " + describe_node(n));
+  return v;
+}
+
+std::int64_t Params::integer(std::string_view key, std::int64_t fallback) {
+  if (!has(key)) {
+    node_->read_keys.insert(std::string(key));
+    return fallback;
+  }
+  return integer(key);
+}
+
+bool Params::flag(std::string_view key, bool fallback) {
+  LODE_PARAM_LOOKUP(key);
+  if (!n.IsDefined() || n.IsNull()) return fallback;
+  bool v = fallback;
+  if (!convert_scalar(n, v)) fail(key, "expected true or false, got " + describe_node(n));
+  return v;
+}
+
+std::string Params::text(std::string_view key) {
+  LODE_PARAM_LOOKUP(key);
+  if (!n.IsDefined() || n.IsNull()) {
+    fail(key, "missing required parameter '" + k + "' (a text)");
+    return {};
+  }
+  if (!n.IsScalar()) {
+    fail(key, "expected a text, got " + describe_node(n));
+    return {};
+  }
+  return n.Scalar();
+}
+
+std::string Params::text(std::string_view key, std::string_view fallback) {
+  if (!has(key)) {
+    node_->read_keys.insert(std::string(key));
+    return std::string(fallback);
+  }
+  return text(key);
+}
+
+std::string Params::choice(std::string_view key, const std::vector<std::string>& allowed,
+                           std::optional<std::string_view> fallback) {
+  std::string v = fallback ? text(key, *fallback) : text(key);
+  if (!ok() && v.empty()) return fallback ? std::string(*fallback) : allowed.front();
+  if (std::find(allowed.begin(), allowed.end(), v) == allowed.end()) {
+    std::string list;
+    for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+    fail(key, "'" + v + "' is not one of: " + list);
+    return fallback ? std::string(*fallback) : allowed.front();
+  }
+  return v;
+}
+
+std::vector<double> Params::numbers(std::string_view key, std::optional<std::size_t> size) {
+  LODE_PARAM_LOOKUP(key);
+  std::vector<double> out;
+  if (!n.IsDefined() || n.IsNull()) {
+    fail(key, "missing required parameter '" + k + "' (a list of numbers)");
+    return std::vector<double>(size.value_or(0), 0.0);
+  }
+  if (n.IsScalar() && size.value_or(1) == 1) {
+    double v = 0.0;
+    if (!convert_scalar(n, v)) fail(key, "expected a finite number, got " + describe_node(n));
+    return {v};
+  }
+  if (!n.IsSequence()) {
+    fail(key, "expected a list of numbers, got " + describe_node(n));
+    return std::vector<double>(size.value_or(0), 0.0);
+  }
+  for (std::size_t i = 0; i < n.size(); ++i) {
+    double v = 0.0;
+    if (!convert_scalar(n[i], v)) {
+      ++node_->tree->errors;
+      node_->tree->diagnostics->add(location_of(n[i], node_->tree->file),
+                                    node_->path + "." + k + "[" + std::to_string(i) + "]",
+                                    "expected a finite number, got " + describe_node(n[i]));
+    }
+    out.push_back(v);
+  }
+  if (size && out.size() != *size) {
+    fail(key, "expected " + std::to_string(*size) + " numbers, got " + std::to_string(out.size()));
+    out.resize(*size, 0.0);
+  }
+  return out;
+}
+
+std::vector<double> Params::numbers(std::string_view key, std::vector<double> fallback,
+                                    std::optional<std::size_t> size) {
+  if (!has(key)) {
+    node_->read_keys.insert(std::string(key));
+    return fallback;
+  }
+  return numbers(key, size);
+}
+
+std::vector<std::int64_t> Params::integers(std::string_view key, std::vector<std::int64_t> fallback) {
+  LODE_PARAM_LOOKUP(key);
+  if (!n.IsDefined() || n.IsNull()) return fallback;
+  if (!n.IsSequence()) {
+    fail(key, "expected a list of integers, got " + describe_node(n));
+    return fallback;
+  }
+  std::vector<std::int64_t> out;
+  for (std::size_t i = 0; i < n.size(); ++i) {
+    std::int64_t v = 0;
+    if (!convert_scalar(n[i], v)) {
+      ++node_->tree->errors;
+      node_->tree->diagnostics->add(location_of(n[i], node_->tree->file),
+                                    node_->path + "." + k + "[" + std::to_string(i) + "]",
+                                    "expected an integer, got " + describe_node(n[i]));
+    }
+    out.push_back(v);
+  }
+  return out;
+}
+
+std::vector<std::string> Params::texts(std::string_view key, std::vector<std::string> fallback) {
+  LODE_PARAM_LOOKUP(key);
+  if (!n.IsDefined() || n.IsNull()) return fallback;
+  if (n.IsScalar()) return {n.Scalar()};
+  if (!n.IsSequence()) {
+    fail(key, "expected a list of texts, got " + describe_node(n));
+    return fallback;
+  }
+  std::vector<std::string> out;
+  for (std::size_t i = 0; i < n.size(); ++i) {
+    if (!n[i].IsScalar()) {
+      ++node_->tree->errors;
+      node_->tree->diagnostics->add(location_of(n[i], node_->tree->file),
+                                    node_->path + "." + k + "[" + std::to_string(i) + "]",
+                                    "expected a text, got " + describe_node(n[i]));
+      continue;
+    }
+    out.push_back(n[i].Scalar());
+  }
+  return out;
+}
+
+namespace {
+Params child_of(const std::shared_ptr<ParamsNode>& parent, const YAML::Node& n, std::string path) {
+  auto node = std::make_shared<ParamsNode>();
+  node->node = n;
+  node->path = std::move(path);
+  node->tree = parent->tree;
+  parent->tree->maps.push_back(node);
+  return Params(node);
+}
+}  // namespace
+
+std::optional<Params> Params::optional_child(std::string_view key) {
+  LODE_PARAM_LOOKUP(key);
+  if (!n.IsDefined() || n.IsNull()) return std::nullopt;
+  if (!n.IsMap()) {
+    fail(key, "expected a map, got " + describe_node(n));
+    return std::nullopt;
+  }
+  return child_of(node_, n, node_->path + "." + k);
+}
+
+Params Params::child(std::string_view key) {
+  auto c = optional_child(key);
+  if (c) return *c;
+  if (ok() || !has(key)) {
+    if (!has(key)) fail(key, "missing required parameter '" + std::string(key) + "' (a map)");
+  }
+  return child_of(node_, YAML::Node(YAML::NodeType::Map), node_->path + "." + std::string(key));
+}
+
+std::vector<Params> Params::items(std::string_view key) {
+  LODE_PARAM_LOOKUP(key);
+  std::vector<Params> out;
+  if (!n.IsDefined() || n.IsNull()) {
+    fail(key, "missing required parameter '" + k + "' (a list of maps)");
+    return out;
+  }
+  if (!n.IsSequence() || n.size() == 0) {
+    fail(key, "expected a non-empty list of maps, got " + describe_node(n));
+    return out;
+  }
+  for (std::size_t i = 0; i < n.size(); ++i) {
+    const std::string p = node_->path + "." + k + "[" + std::to_string(i) + "]";
+    if (!n[i].IsMap()) {
+      ++node_->tree->errors;
+      node_->tree->diagnostics->add(location_of(n[i], node_->tree->file), p,
+                                    "expected a map, got " + describe_node(n[i]));
+      continue;
+    }
+    out.push_back(child_of(node_, n[i], p));
+  }
+  return out;
+}
+
+}  // namespace lode

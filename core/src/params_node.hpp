@@ -1,0 +1,45 @@
+// Internal: the YAML behind lode::Params, and the bookkeeping of which keys were read.
+#pragma once
+
+#include <yaml-cpp/yaml.h>
+
+#include <memory>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "lode/diagnostics.hpp"
+#include "lode/params.hpp"
+
+namespace lode::detail {
+
+/// Shared by every node of one parameter tree (one block or model).
+struct ParamsTree {
+  Diagnostics* diagnostics = nullptr;  ///< where problems go (owned by the loader)
+  std::string file;
+  std::size_t errors = 0;
+  std::vector<std::weak_ptr<ParamsNode>> maps;  ///< every map node handed out, for unknown-key checks
+};
+
+struct ParamsNode {
+  YAML::Node node;
+  std::string path;
+  std::shared_ptr<ParamsTree> tree;
+  std::set<std::string> read_keys;
+};
+
+SourceLocation location_of(const YAML::Node& node, const std::string& file);
+
+/// Wrap a YAML map. `ignored_keys` are treated as read (e.g. "plugin", "inputs").
+Params make_params(const YAML::Node& map, std::string path, std::string file,
+                   Diagnostics* diagnostics, const std::vector<std::string>& ignored_keys = {});
+
+/// Report keys of every map in the tree that configure() never read.
+void report_unread_keys(const Params& root);
+
+/// Top-level keys read by configure() (for the descriptor cross-check).
+std::set<std::string> read_top_level_keys(const Params& root);
+
+std::size_t error_count(const Params& root);
+
+}  // namespace lode::detail

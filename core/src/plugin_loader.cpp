@@ -1,0 +1,133 @@
+#include "lode/plugin_loader.hpp"
+
+#include <dlfcn.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <set>
+
+namespace fs = std::filesystem;
+
+namespace lode {
+
+namespace {
+constexpr const char* kFilePrefix = "lode-";
+constexpr const char* kFileSuffix = ".so";
+
+std::string executable_dir() {
+  std::error_code ec;
+  const auto exe = fs::read_symlink("/proc/self/exe", ec);
+  return ec ? std::string() : exe.parent_path().string();
+}
+}  // namespace
+
+std::vector<std::string> PluginRegistry::default_search_path() {
+  std::vector<std::string> path;
+  if (const char* env = std::getenv("LODE_PLUGIN_PATH")) {
+    std::string s(env);
+    std::size_t start = 0;
+    while (start <= s.size()) {
+      const auto end = s.find(':', start);
+      const auto item = s.substr(start, end == std::string::npos ? std::string::npos : end - start);
+      if (!item.empty()) path.push_back(item);
+      if (end == std::string::npos) break;
+      start = end + 1;
+    }
+  }
+  const auto exe_dir = executable_dir();
+  if (!exe_dir.empty()) path.push_back(exe_dir + "/../lib/lodestone/plugins");
+  path.emplace_back(LODE_INSTALL_PLUGIN_DIR);
+  path.emplace_back(LODE_BUILD_PLUGIN_DIR);
+  return path;
+}
+
+PluginRegistry::PluginRegistry(std::vector<std::string> search_path)
+    : search_path_(std::move(search_path)) {}
+
+Expected<LoadedPlugin> PluginRegistry::load_file(const std::string& path) {
+  {
+    std::lock_guard lock(mutex_);
+    if (auto it = by_path_.find(path); it != by_path_.end()) return it->second;
+  }
+  void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+  if (!handle) {
+    const char* why = dlerror();
+    return Status::error("cannot load plugin file " + path + ": " + (why ? why : "unknown dlopen error"));
+  }
+  dlerror();
+  void* symbol = dlsym(handle, kPluginSymbol);
+  if (!symbol) {
+    return Status::error(path + " is not a lodestone plugin: it does not export the symbol '" +
+                         std::string(kPluginSymbol) + "' (use the LODE_PLUGIN macro)");
+  }
+  auto entry = reinterpret_cast<PluginEntry>(symbol);
+  const PluginDescriptor* d = entry();
+  if (!d) return Status::error(path + ": " + kPluginSymbol + "() returned null");
+  if (d->abi_version != kPluginAbiVersion || d->descriptor_size != sizeof(PluginDescriptor)) {
+    return Status::error(path + ": plugin ABI version " + std::to_string(d->abi_version) +
+                         " (descriptor " + std::to_string(d->descriptor_size) +
+                         " bytes) does not match this lodestone's ABI version " +
+                         std::to_string(kPluginAbiVersion) + " (" +
+                         std::to_string(sizeof(PluginDescriptor)) +
+                         " bytes): rebuild the plugin against this SDK");
+  }
+  if (!d->name || !d->create) return Status::error(path + ": descriptor has no name or create()");
+  LoadedPlugin loaded{d, path};
+  std::lock_guard lock(mutex_);
+  by_path_[path] = loaded;
+  by_name_.emplace(d->name, loaded);
+  return loaded;
+}
+
+Expected<LoadedPlugin> PluginRegistry::find(const std::string& name) {
+  {
+    std::lock_guard lock(mutex_);
+    if (auto it = by_name_.find(name); it != by_name_.end()) return it->second;
+  }
+  const std::string file = kFilePrefix + name + kFileSuffix;
+  for (const auto& dir : search_path_) {
+    const fs::path candidate = fs::path(dir) / file;
+    std::error_code ec;
+    if (!fs::is_regular_file(candidate, ec)) continue;
+    auto loaded = load_file(candidate.string());
+    if (!loaded) return loaded;
+    if (std::string(loaded->descriptor->name) != name) {
+      return Status::error(candidate.string() + " declares the name '" +
+                           loaded->descriptor->name + "', expected '" + name + "'");
+    }
+    return loaded;
+  }
+  std::string searched;
+  for (const auto& dir : search_path_) searched += (searched.empty() ? "" : ":") + dir;
+  return Status::error("no plugin named '" + name + "' (looked for " + file + " in " + searched + ")");
+}
+
+PluginRegistry::Listing PluginRegistry::discover_all() {
+  Listing out;
+  std::set<std::string> seen;
+  for (const auto& dir : search_path_) {
+    std::error_code ec;
+    if (!fs::is_directory(dir, ec)) continue;
+    std::vector<fs::path> files;
+    for (const auto& entry : fs::directory_iterator(dir, ec)) {
+      const auto name = entry.path().filename().string();
+      if (name.rfind(kFilePrefix, 0) == 0 && name.size() > 3 &&
+          name.substr(name.size() - 3) == kFileSuffix)
+        files.push_back(entry.path());
+    }
+    std::sort(files.begin(), files.end());
+    for (const auto& f : files) {
+      auto loaded = load_file(f.string());
+      if (!loaded) {
+        out.errors.push_back(loaded.error());
+        continue;
+      }
+      if (seen.insert(loaded->descriptor->name).second) out.plugins.push_back(*loaded);
+    }
+  }
+  return out;
+}
+
+}  // namespace lode

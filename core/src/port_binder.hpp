@@ -1,0 +1,20 @@
+// Internal: binds declared ports to arena storage (the only writer of their pointers).
+#pragma once
+
+#include "lode/port.hpp"
+
+namespace lode {
+
+class PortBinder {
+ public:
+  static void bind(OutputPort& port, double* data, std::size_t size) {
+    port.data_ = data;
+    port.size_ = size;
+  }
+  static void bind(InputPort& port, const double* data, std::size_t size) {
+    port.data_ = data;
+    port.size_ = size;
+  }
+};
+
+}  // namespace lode

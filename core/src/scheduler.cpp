@@ -1,0 +1,187 @@
+#include "lode/scheduler.hpp"
+
+#include <pthread.h>
+#include <time.h>
+
+#include <cerrno>
+#include <chrono>
+#include <thread>
+
+#include "lode/realtime.hpp"
+#include "lode/rt_log.hpp"
+
+namespace lode {
+
+std::int64_t RealClock::now_ns() noexcept {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+void RealClock::sleep_until(std::int64_t deadline_ns) noexcept {
+  timespec ts{};
+  ts.tv_sec = deadline_ns / 1'000'000'000;
+  ts.tv_nsec = deadline_ns % 1'000'000'000;
+  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+  }
+}
+
+// --------------------------------------------------------------------------------------
+
+SignalTap::SignalTap(std::vector<SignalRef> signals, std::size_t capacity_records)
+    : signals_(std::move(signals)), capacity_(capacity_records) {
+  for (const auto& s : signals_) {
+    columns_.push_back(stride_);
+    stride_ += s.size();
+  }
+  buffer_.assign(capacity_ * stride_, 0.0);
+}
+
+void SignalTap::capture(std::uint64_t cycle, std::int64_t time_ns) noexcept {
+  const std::uint64_t head = head_.load(std::memory_order_relaxed);
+  if (head - tail_.load(std::memory_order_acquire) >= capacity_) {
+    dropped_.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  double* rec = buffer_.data() + (head % capacity_) * stride_;
+  rec[0] = static_cast<double>(cycle);
+  rec[1] = static_cast<double>(time_ns) * 1e-9;
+  std::size_t c = 2;
+  for (const auto& s : signals_)
+    for (std::size_t i = 0; i < s.size(); ++i) rec[c++] = s.data[i];
+  head_.store(head + 1, std::memory_order_release);
+}
+
+std::size_t SignalTap::drain(std::vector<double>& out) {
+  const std::uint64_t head = head_.load(std::memory_order_acquire);
+  std::uint64_t tail = tail_.load(std::memory_order_relaxed);
+  const std::size_t n = head - tail;
+  for (; tail < head; ++tail) {
+    const double* rec = buffer_.data() + (tail % capacity_) * stride_;
+    out.insert(out.end(), rec, rec + stride_);
+  }
+  tail_.store(tail, std::memory_order_release);
+  return n;
+}
+
+// --------------------------------------------------------------------------------------
+
+Scheduler::Scheduler(Pipeline& pipeline, Clock& clock, EventLog& events)
+    : pipeline_(pipeline), clock_(clock), events_(events) {}
+
+bool Scheduler::cycle(const Tick& tick, RunResult& result) noexcept {
+  rt_log_set_clock(tick.time_ns, tick.cycle);
+  const std::int64_t start = clock_.simulated() ? 0 : clock_.now_ns();
+  const auto r = pipeline_.run_cycle(tick, time_ops_);
+  for (auto* tap : taps_) tap->capture(tick.cycle, tick.time_ns);
+  if (!clock_.simulated()) stats_.cycle_time.record(clock_.now_ns() - start);
+  stats_.cycles.store(tick.cycle + 1, std::memory_order_relaxed);
+  stats_.last_time_ns.store(tick.time_ns, std::memory_order_relaxed);
+  if (r.status != StepStatus::ok) {
+    result.faulted = true;
+    fault_op_ = r.failed_op;
+    return false;
+  }
+  return true;
+}
+
+RunResult Scheduler::run(std::uint64_t cycles, const std::atomic<bool>& stop,
+                         const std::function<void()>& on_idle) {
+  const auto wall_start = std::chrono::steady_clock::now();
+  RunResult result = clock_.simulated() ? run_simulated(cycles, stop, on_idle)
+                                        : run_real(cycles, stop, on_idle);
+  result.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  const auto cycle = stats_.cycles.load();
+  const auto t = stats_.last_time_ns.load();
+  if (result.faulted && fault_op_ >= 0) {
+    const auto& op = pipeline_.ops()[static_cast<std::size_t>(fault_op_)];
+    if (result.fault.empty()) result.fault = op.label + ": " + op.block->fault_reason();
+  }
+  if (result.faulted) events_.post(t, cycle, "fault", result.fault + " (outputs driven safe)");
+  if (on_idle) on_idle();  // final drain
+  return result;
+}
+
+RunResult Scheduler::run_simulated(std::uint64_t cycles, const std::atomic<bool>& stop,
+                                   const std::function<void()>& on_idle) {
+  RunResult result;
+  const std::int64_t period = pipeline_.period_ns();
+  Tick tick;
+  tick.dt_s = 1.0 / pipeline_.rate_hz();
+  for (std::uint64_t k = 0; cycles == 0 || k < cycles; ++k) {
+    if (stop.load(std::memory_order_relaxed)) {
+      result.stopped_by_request = true;
+      break;
+    }
+    tick.cycle = k;
+    tick.time_ns = static_cast<std::int64_t>(k) * period;
+    clock_.sleep_until(tick.time_ns);
+    if (!cycle(tick, result)) break;
+    // Drain often enough that no tap can overflow: a simulated run is never lossy.
+    if ((k & 1023) == 1023 && on_idle) on_idle();
+  }
+  return result;
+}
+
+RunResult Scheduler::run_real(std::uint64_t cycles, const std::atomic<bool>& stop,
+                              const std::function<void()>& on_idle) {
+  RunResult result;
+  const RealtimeSettings& rts = pipeline_.realtime();
+  result.warnings = apply_process_realtime(rts);
+  std::atomic<bool> done{false};
+  std::vector<std::string> thread_warnings;
+
+  std::thread rt([&] {
+    pthread_setname_np(pthread_self(), "lode-rt");
+    thread_warnings = apply_thread_realtime(rts);
+    const std::int64_t period = pipeline_.period_ns();
+    Tick tick;
+    tick.dt_s = 1.0 / pipeline_.rate_hz();
+    const std::int64_t start = clock_.now_ns() + period;  // first deadline one period out
+    std::int64_t deadline = start;
+    std::uint64_t k = 0;
+    std::uint64_t overruns = 0;
+    while ((cycles == 0 || k < cycles) && !stop.load(std::memory_order_relaxed)) {
+      clock_.sleep_until(deadline);
+      const std::int64_t woke = clock_.now_ns();
+      stats_.wake_latency.record(woke - deadline);
+      tick.cycle = k;
+      tick.time_ns = deadline - start;
+      if (!cycle(tick, result)) break;
+      ++k;
+      deadline += period;
+      const std::int64_t now = clock_.now_ns();
+      if (now > deadline) {  // this cycle ran into the next period
+        ++overruns;
+        stats_.overruns.store(overruns, std::memory_order_relaxed);
+        if (rts.overrun_policy == OverrunPolicy::stop ||
+            (rts.max_overruns > 0 && overruns >= rts.max_overruns)) {
+          result.faulted = true;
+          result.fault = "scheduler: overrun limit reached (" + std::to_string(overruns) + ")";
+          pipeline_.drive_safe();
+          break;
+        }
+        if (rts.overrun_policy == OverrunPolicy::skip) {
+          // Keep the phase of the grid: skip the periods already lost.
+          const std::int64_t missed = (now - deadline) / period + 1;
+          deadline += missed * period;
+          k += static_cast<std::uint64_t>(missed);
+          stats_.missed_periods.fetch_add(static_cast<std::uint64_t>(missed), std::memory_order_relaxed);
+        }
+      }
+    }
+    done.store(true, std::memory_order_release);
+  });
+  while (!done.load(std::memory_order_acquire)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    if (on_idle) on_idle();
+  }
+  rt.join();
+  release_process_realtime();
+  if (stop.load() && !result.faulted) result.stopped_by_request = true;
+  result.warnings.insert(result.warnings.end(), thread_warnings.begin(), thread_warnings.end());
+  for (const auto& w : result.warnings) events_.post(0, 0, "warning", w);
+  return result;
+}
+
+}  // namespace lode
