@@ -1,0 +1,59 @@
+#include "log_drain.hpp"
+
+#include <fmt/args.h>
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+
+#include "lode/rt_log.hpp"
+
+namespace lode {
+
+LogDrain::LogDrain(EventLog& events) : events_(events) {
+  thread_ = std::thread([this] {
+    while (running_.load(std::memory_order_relaxed)) {
+      drain_once();
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  });
+}
+
+LogDrain::~LogDrain() { stop(); }
+
+void LogDrain::drain_once() {
+  LogRecord r;
+  auto& ring = rt_log_ring();
+  while (ring.pop(r)) {
+    fmt::dynamic_format_arg_store<fmt::format_context> args;
+    for (std::uint8_t i = 0; i < r.argc && i < r.args.size(); ++i) args.push_back(r.args[i]);
+    std::string text;
+    try {
+      text = fmt::vformat(r.format, args);
+    } catch (const fmt::format_error&) {
+      text = std::string(r.format) + " (bad log format)";
+    }
+    const auto level = r.level == LogLevel::error  ? spdlog::level::err
+                       : r.level == LogLevel::warn ? spdlog::level::warn
+                       : r.level == LogLevel::info ? spdlog::level::info
+                                                   : spdlog::level::debug;
+    spdlog::log(level, "[{} cycle {}] {}", r.source, r.cycle, text);
+    if (r.level >= LogLevel::warn)
+      events_.post(r.time_ns, r.cycle, r.level == LogLevel::error ? "error" : "warning",
+                   std::string(r.source) + ": " + text);
+  }
+  const auto dropped = ring.dropped();
+  if (dropped > reported_drops_) {
+    events_.post(0, 0, "warning",
+                 "RT log ring full: " + std::to_string(dropped - reported_drops_) + " records dropped");
+    reported_drops_ = dropped;
+  }
+}
+
+void LogDrain::stop() {
+  if (!running_.exchange(false)) return;
+  if (thread_.joinable()) thread_.join();
+  drain_once();
+}
+
+}  // namespace lode

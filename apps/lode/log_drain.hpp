@@ -1,0 +1,29 @@
+// Drains the RT log ring into spdlog (and warnings into the event log), off the RT thread.
+#pragma once
+
+#include <atomic>
+#include <thread>
+
+#include "lode/event_log.hpp"
+
+namespace lode {
+
+class LogDrain {
+ public:
+  explicit LogDrain(EventLog& events);
+  ~LogDrain();
+  LogDrain(const LogDrain&) = delete;
+  LogDrain& operator=(const LogDrain&) = delete;
+  /// Format whatever is queued now (also called by the drain thread every 20 ms).
+  void drain_once();
+  /// Stop the thread, drain the rest, and report drops as an event.
+  void stop();
+
+ private:
+  EventLog& events_;
+  std::atomic<bool> running_{true};
+  std::thread thread_;
+  std::uint64_t reported_drops_ = 0;
+};
+
+}  // namespace lode

@@ -1,0 +1,571 @@
+// lode: run, check and inspect lodestone pipelines.
+//
+// Exit codes: 0 success, 1 runtime fault, 2 invalid configuration (or usage).
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <csignal>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "analysis.hpp"
+#include "lode/event_log.hpp"
+#include "lode/pipeline.hpp"
+#include "lode/plugin_loader.hpp"
+#include "lode/realtime.hpp"
+#include "lode/rt_log.hpp"
+#include "lode/scheduler.hpp"
+#include "log_drain.hpp"
+
+namespace {
+
+constexpr int kExitOk = 0;
+constexpr int kExitFault = 1;
+constexpr int kExitConfig = 2;
+
+std::atomic<bool> g_stop{false};
+extern "C" void on_signal(int) { g_stop.store(true); }
+
+const char* kUsage = R"(usage: lode <command> [options]
+
+  run CONFIG [--duration S] [--clock sim|real] [--summary-json FILE] [--quiet]
+                       run a pipeline; live status line, summary at the end
+  check CONFIG         validate a pipeline; every problem with file:line:column
+  describe CONFIG      the resolved pipeline as JSON, with every derived quantity
+  plugins [--json]     installed plugins with their parameters and ports
+  bench CONFIG [--cycles N]
+                       per-block and whole-cycle step cost (simulated clock)
+  rtcheck              how fit this host is for real-time runs, with advice
+
+exit codes: 0 success, 1 runtime fault, 2 invalid configuration
+plugin search path: $LODE_PLUGIN_PATH, <exe>/../lib/lodestone/plugins, install and build folders
+)";
+
+struct Args {
+  std::string command;
+  std::vector<std::string> positional;
+  std::map<std::string, std::string> options;
+  std::vector<std::string> flags;
+  bool has_flag(const std::string& f) const {
+    return std::find(flags.begin(), flags.end(), f) != flags.end();
+  }
+};
+
+std::optional<Args> parse_args(int argc, char** argv) {
+  if (argc < 2) return std::nullopt;
+  Args a;
+  a.command = argv[1];
+  static const std::vector<std::string> with_value = {"--duration", "--clock", "--summary-json",
+                                                      "--cycles"};
+  for (int i = 2; i < argc; ++i) {
+    std::string s = argv[i];
+    if (s.rfind("--", 0) == 0) {
+      const auto eq = s.find('=');
+      if (eq != std::string::npos) {
+        a.options[s.substr(0, eq)] = s.substr(eq + 1);
+      } else if (std::find(with_value.begin(), with_value.end(), s) != with_value.end()) {
+        if (i + 1 >= argc) {
+          std::fprintf(stderr, "lode: %s needs a value\n", s.c_str());
+          return std::nullopt;
+        }
+        a.options[s] = argv[++i];
+      } else {
+        a.flags.push_back(s);
+      }
+    } else {
+      a.positional.push_back(s);
+    }
+  }
+  return a;
+}
+
+std::unique_ptr<lode::Pipeline> load_or_report(const std::string& path, lode::PluginRegistry& reg) {
+  lode::Diagnostics diag;
+  auto p = lode::Pipeline::load_file(path, reg, diag);
+  if (!p) {
+    std::fputs(diag.format().c_str(), stderr);
+    std::fprintf(stderr, "lode: %zu problem%s in %s; nothing was started\n", diag.size(),
+                 diag.size() == 1 ? "" : "s", path.c_str());
+  }
+  return p;
+}
+
+// ---------------------------------------------------------------------------------------
+int cmd_plugins(const Args& args) {
+  lode::PluginRegistry reg;
+  auto listing = reg.discover_all();
+  lode::Json out = lode::Json::array();
+  for (const auto& p : listing.plugins) {
+    const auto* d = p.descriptor;
+    lode::Json j = lode::Json::object();
+    j["name"] = d->name;
+    j["kind"] = lode::to_string(d->kind);
+    j["version"] = d->version;
+    j["summary"] = d->summary;
+    j["file"] = p.path;
+    lode::Json params = lode::Json::array();
+    for (std::size_t i = 0; i < d->param_count; ++i) {
+      lode::Json pj = lode::Json::object();
+      pj["name"] = d->params[i].name;
+      pj["type"] = d->params[i].type;
+      pj["default"] = d->params[i].default_value ? lode::Json(d->params[i].default_value) : lode::Json();
+      pj["description"] = d->params[i].description;
+      params.push(std::move(pj));
+    }
+    j["parameters"] = std::move(params);
+    lode::Json ports = lode::Json::array();
+    for (std::size_t i = 0; i < d->port_count; ++i) {
+      lode::Json pj = lode::Json::object();
+      pj["name"] = d->ports[i].name;
+      pj["direction"] = d->ports[i].direction;
+      pj["description"] = d->ports[i].description;
+      ports.push(std::move(pj));
+    }
+    j["ports"] = std::move(ports);
+    out.push(std::move(j));
+  }
+  if (args.has_flag("--json")) {
+    std::cout << out.dump() << "\n";
+  } else {
+    for (const auto& p : listing.plugins) {
+      const auto* d = p.descriptor;
+      std::printf("%-26s %-7s %-8s %s\n", d->name, lode::to_string(d->kind), d->version, d->summary);
+      for (std::size_t i = 0; i < d->port_count; ++i)
+        std::printf("    %-4s %-18s %s\n", d->ports[i].direction, d->ports[i].name, d->ports[i].description);
+      for (std::size_t i = 0; i < d->param_count; ++i) {
+        const auto& pd = d->params[i];
+        std::printf("    %-23s %-13s %-12s %s\n", pd.name, pd.type,
+                    pd.default_value ? pd.default_value : "(required)", pd.description);
+      }
+    }
+    std::printf("%zu plugins\n", listing.plugins.size());
+  }
+  for (const auto& e : listing.errors) std::fprintf(stderr, "lode: %s\n", e.c_str());
+  return listing.errors.empty() ? kExitOk : kExitFault;
+}
+
+int cmd_check(const Args& args) {
+  if (args.positional.size() != 1) {
+    std::fputs(kUsage, stderr);
+    return kExitConfig;
+  }
+  lode::PluginRegistry reg;
+  auto p = load_or_report(args.positional[0], reg);
+  if (!p) return kExitConfig;
+  std::printf("%s: ok: pipeline '%s' at %g Hz, %zu operations per cycle:", args.positional[0].c_str(),
+              p->name().c_str(), p->rate_hz(), p->ops().size());
+  for (const auto& op : p->ops()) std::printf(" %s", op.label.c_str());
+  std::printf("\n");
+  return kExitOk;
+}
+
+int cmd_describe(const Args& args) {
+  if (args.positional.size() != 1) {
+    std::fputs(kUsage, stderr);
+    return kExitConfig;
+  }
+  lode::PluginRegistry reg;
+  auto p = load_or_report(args.positional[0], reg);
+  if (!p) return kExitConfig;
+  std::cout << p->describe().dump() << "\n";
+  return kExitOk;
+}
+
+int cmd_rtcheck(const Args&) {
+  const auto r = lode::realtime_host_report();
+  std::cout << r.dump() << "\n";
+  return kExitOk;
+}
+
+// ---------------------------------------------------------------------------------------
+// run
+
+struct Recording {
+  std::unique_ptr<lode::SignalTap> tap;
+  std::vector<double> rows;
+  int show = -1, estimate = -1, truth = -1, reference = -1;
+};
+
+std::string format_value(double v, const std::string& unit) {
+  auto [scale, shown] = lode::analysis::display_scale(unit);
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%+.3f %s", v * scale, shown.c_str());
+  return buf;
+}
+
+lode::analysis::Series column_series(const Recording& rec, int index) {
+  lode::analysis::Series s;
+  const auto& sig = rec.tap->signals()[static_cast<std::size_t>(index)];
+  s.elements = *sig.elements;
+  const std::size_t stride = rec.tap->stride();
+  const std::size_t col = rec.tap->column(static_cast<std::size_t>(index));
+  const std::size_t rows = rec.rows.size() / stride;
+  s.values.reserve(rows * sig.size());
+  for (std::size_t k = 0; k < rows; ++k)
+    for (std::size_t i = 0; i < sig.size(); ++i) s.values.push_back(rec.rows[k * stride + col + i]);
+  return s;
+}
+
+lode::Json stats_json(const std::vector<lode::analysis::AxisStats>& stats, const lode::Elements& e) {
+  lode::Json j = lode::Json::object();
+  for (std::size_t i = 0; i < stats.size(); ++i) {
+    lode::Json a = lode::Json::object();
+    a["unit"] = e[i].unit;
+    a["std"] = stats[i].std;
+    a["rms"] = stats[i].rms;
+    a["mean"] = stats[i].mean;
+    a["max_abs"] = stats[i].max_abs;
+    a["samples"] = static_cast<std::uint64_t>(stats[i].samples);
+    j[e[i].name] = std::move(a);
+  }
+  return j;
+}
+
+void print_stats(const char* title, const std::vector<lode::analysis::AxisStats>& stats,
+                 const lode::Elements& e, bool std_only) {
+  std::printf("  %-34s", title);
+  for (std::size_t i = 0; i < stats.size(); ++i) {
+    auto [scale, unit] = lode::analysis::display_scale(e[i].unit);
+    if (std_only)
+      std::printf("  %s %.3f %s", e[i].name.c_str(), stats[i].std * scale, unit.c_str());
+    else
+      std::printf("  %s rms %.3f max %.3f %s", e[i].name.c_str(), stats[i].rms * scale,
+                  stats[i].max_abs * scale, unit.c_str());
+  }
+  std::printf("\n");
+}
+
+lode::Json analyse(const lode::Pipeline& p, const Recording& rec, std::string_view) {
+  using namespace lode::analysis;
+  lode::Json out = lode::Json::object();
+  const std::size_t stride = rec.tap->stride();
+  const std::size_t rows = rec.rows.size() / stride;
+  if (rows < 3) return out;
+  std::vector<double> t(rows);
+  for (std::size_t k = 0; k < rows; ++k) t[k] = rec.rows[k * stride + 1];
+  const auto& mon = p.monitor();
+  double h0 = mon.hold_start_s, h1 = mon.hold_end_s;
+  if (h1 <= h0) {
+    h0 = 0.0;
+    h1 = t.back();
+  }
+  std::printf("\nsummary (%zu samples, %.3f s)\n", rows, t.back() + 1.0 / p.rate_hz());
+  if (rec.truth >= 0) {
+    const auto truth = column_series(rec, rec.truth);
+    const auto hold_truth = window_stats(t, truth, nullptr, h0, h1);
+    lode::Json noise = lode::Json::object();
+    noise["window_s"] = std::vector<double>{h0, h1};
+    noise["truth"] = stats_json(hold_truth, truth.elements);
+    char title[96];
+    std::snprintf(title, sizeof title, "position noise std [%.2f, %.2f] s", h0, h1);
+    print_stats(title, hold_truth, truth.elements, true);
+    if (rec.estimate >= 0) {
+      const auto est = column_series(rec, rec.estimate);
+      const auto hold_est = window_stats(t, est, nullptr, h0, h1);
+      noise["estimate"] = stats_json(hold_est, est.elements);
+      print_stats("  as the estimator reports it", hold_est, est.elements, true);
+      const auto err = window_stats(t, est, &truth, 0.0, t.back());
+      out["estimation_error"] = stats_json(err, est.elements);
+      print_stats("estimation error (estimate-truth)", err, est.elements, false);
+    }
+    out["position_noise"] = std::move(noise);
+    if (rec.reference >= 0) {
+      const auto ref = column_series(rec, rec.reference);
+      const auto track = window_stats(t, ref, &truth, 0.0, t.back());
+      out["tracking_error"] = stats_json(track, truth.elements);
+      print_stats("tracking error (reference-truth)", track, truth.elements, false);
+      const auto steps = step_responses(t, ref, truth, mon.settle_band);
+      lode::Json sj = lode::Json::array();
+      for (const auto& s : steps) {
+        const auto& el = truth.elements[s.axis];
+        auto [scale, unit] = display_scale(el.unit);
+        lode::Json j = lode::Json::object();
+        j["axis"] = el.name;
+        j["time_s"] = s.time_s;
+        j["amplitude"] = s.amplitude;
+        j["rise_time_s"] = s.rise_time_s;
+        j["overshoot_pct"] = s.overshoot_pct;
+        j["settling_time_s"] = s.settling_time_s;
+        j["steady_state_error"] = s.steady_state_error;
+        lode::Json coupling = lode::Json::object();
+        for (std::size_t i = 0; i < s.peak_coupling.size(); ++i)
+          if (i != s.axis) coupling[truth.elements[i].name] = s.peak_coupling[i];
+        j["peak_coupling"] = std::move(coupling);
+        std::printf("  step %-8s at %.3f s of %+.1f %s: rise %.1f ms, overshoot %.1f %%, settling (%.0f%%) %.1f ms, "
+                    "steady-state error %+.3f %s\n",
+                    el.name.c_str(), s.time_s, s.amplitude * scale, unit.c_str(), s.rise_time_s * 1e3,
+                    s.overshoot_pct, mon.settle_band * 100, s.settling_time_s * 1e3,
+                    s.steady_state_error * scale, unit.c_str());
+        sj.push(std::move(j));
+      }
+      out["steps"] = std::move(sj);
+    }
+  }
+  return out;
+}
+
+lode::Json timing_json(const lode::Pipeline& p, const lode::Scheduler& s, const lode::RunResult& r,
+                       bool simulated, double sim_seconds) {
+  lode::Json j = lode::Json::object();
+  const auto& st = s.stats();
+  j["clock"] = simulated ? "sim" : "real";
+  j["cycles"] = st.cycles.load();
+  j["rate_hz"] = p.rate_hz();
+  j["wall_s"] = r.wall_s;
+  j["simulated_s"] = sim_seconds;
+  if (simulated) {
+    j["speed_vs_realtime"] = r.wall_s > 0 ? sim_seconds / r.wall_s : 0.0;
+  } else {
+    j["achieved_rate_hz"] = sim_seconds > 0 ? static_cast<double>(st.cycles.load()) / sim_seconds : 0.0;
+    j["wake_latency"] = st.wake_latency.summary_us();
+    j["cycle_time"] = st.cycle_time.summary_us();
+  }
+  j["overruns"] = st.overruns.load();
+  j["missed_periods"] = st.missed_periods.load();
+  lode::Json blocks = lode::Json::object();
+  for (const auto& op : p.ops()) blocks[op.label] = op.exec_time->summary_us();
+  j["block_exec_time"] = std::move(blocks);
+  return j;
+}
+
+int cmd_run(const Args& args) {
+  if (args.positional.size() != 1) {
+    std::fputs(kUsage, stderr);
+    return kExitConfig;
+  }
+  const std::string config = args.positional[0];
+  const std::string clock_name = args.options.count("--clock") ? args.options.at("--clock") : "sim";
+  if (clock_name != "sim" && clock_name != "real") {
+    std::fprintf(stderr, "lode: --clock must be sim or real, got '%s'\n", clock_name.c_str());
+    return kExitConfig;
+  }
+  const bool quiet = args.has_flag("--quiet");
+  lode::PluginRegistry reg;
+  auto p = load_or_report(config, reg);
+  if (!p) return kExitConfig;
+  double duration = p->default_duration_s().value_or(10.0);
+  if (args.options.count("--duration")) {
+    char* end = nullptr;
+    duration = std::strtod(args.options.at("--duration").c_str(), &end);
+    if (!end || *end || !(duration > 0)) {
+      std::fprintf(stderr, "lode: --duration must be a positive number of seconds\n");
+      return kExitConfig;
+    }
+  }
+  const auto cycles = static_cast<std::uint64_t>(std::llround(duration * p->rate_hz()));
+
+  // What to record: every signal the monitor names, each once.
+  Recording rec;
+  std::vector<lode::SignalRef> tapped;
+  auto add = [&](const std::optional<lode::SignalRef>& s) -> int {
+    if (!s) return -1;
+    for (std::size_t i = 0; i < tapped.size(); ++i)
+      if (tapped[i].data == s->data) return static_cast<int>(i);
+    tapped.push_back(*s);
+    return static_cast<int>(tapped.size() - 1);
+  };
+  const auto& mon = p->monitor();
+  rec.show = add(mon.show);
+  rec.estimate = add(mon.estimate);
+  rec.truth = add(mon.truth);
+  rec.reference = add(mon.reference);
+  for (const auto& s : mon.record) add(s);
+  rec.tap = std::make_unique<lode::SignalTap>(tapped, 1 << 15);
+  rec.rows.reserve(cycles * rec.tap->stride() + 16);
+
+  lode::EventLog events;
+  lode::LogDrain drain(events);
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+
+  std::unique_ptr<lode::Clock> clock;
+  if (clock_name == "sim") clock = std::make_unique<lode::SimulatedClock>();
+  else clock = std::make_unique<lode::RealClock>();
+  lode::Scheduler sched(*p, *clock, events);
+  sched.add_tap(rec.tap.get());
+
+  if (auto st = p->activate(); !st) {
+    std::fprintf(stderr, "lode: %s\n", st.message().c_str());
+    return kExitFault;
+  }
+  events.post(0, 0, "start", "pipeline '" + p->name() + "' at " + std::to_string(p->rate_hz()) +
+                                 " Hz, " + clock_name + " clock, " + std::to_string(duration) + " s");
+  const bool tty = isatty(STDERR_FILENO) != 0;
+  auto last_print = std::chrono::steady_clock::now();
+  auto status_line = [&](bool final_line) {
+    const auto& st = sched.stats();
+    const double t = static_cast<double>(st.last_time_ns.load()) * 1e-9;
+    std::string line = "cycle " + std::to_string(st.cycles.load());
+    char buf[160];
+    if (clock_name == "real") {
+      std::snprintf(buf, sizeof buf, "  t %.2f s  %.1f Hz  wake max %.0f us  overruns %llu", t,
+                    t > 0 ? static_cast<double>(st.cycles.load()) / (t + 1.0 / p->rate_hz()) : 0.0,
+                    static_cast<double>(st.wake_latency.max()) / 1e3,
+                    static_cast<unsigned long long>(st.overruns.load()));
+    } else {
+      std::snprintf(buf, sizeof buf, "  t %.2f s (simulated)  overruns 0", t);
+    }
+    line += buf;
+    if (rec.show >= 0 && rec.rows.size() >= rec.tap->stride()) {
+      const auto& sig = rec.tap->signals()[static_cast<std::size_t>(rec.show)];
+      const double* last = rec.rows.data() + rec.rows.size() - rec.tap->stride() +
+                           rec.tap->column(static_cast<std::size_t>(rec.show));
+      line += "  " + sig.name() + ":";
+      for (std::size_t i = 0; i < sig.size(); ++i)
+        line += " " + (*sig.elements)[i].name + " " + format_value(last[i], (*sig.elements)[i].unit);
+    }
+    if (quiet) return;
+    if (tty) std::fprintf(stderr, "\r%-150s%s", line.c_str(), final_line ? "\n" : "");
+    else std::fprintf(stderr, "%s\n", line.c_str());
+  };
+  auto on_idle = [&] {
+    rec.tap->drain(rec.rows);
+    const auto now = std::chrono::steady_clock::now();
+    if (now - last_print > std::chrono::milliseconds(tty ? 200 : 1000)) {
+      last_print = now;
+      status_line(false);
+    }
+  };
+  const auto result = sched.run(cycles, g_stop, on_idle);
+  p->deactivate();  // drives every output safe
+  rec.tap->drain(rec.rows);
+  status_line(true);
+  drain.stop();
+  const auto& st = sched.stats();
+  const double sim_seconds = static_cast<double>(st.cycles.load()) / p->rate_hz();
+  events.post(st.last_time_ns.load(), st.cycles.load(), "stop",
+              result.faulted ? "fault: " + result.fault
+                             : result.stopped_by_request ? "stopped by signal" : "completed");
+  for (const auto& w : result.warnings) std::fprintf(stderr, "lode: warning: %s\n", w.c_str());
+
+  lode::Json summary = lode::Json::object();
+  summary["pipeline"] = p->name();
+  summary["config"] = config;
+  summary["result"] = result.faulted ? "fault" : result.stopped_by_request ? "stopped" : "completed";
+  if (result.faulted) summary["fault"] = result.fault;
+  lode::Json analysis = analyse(*p, rec, clock_name);
+  for (const auto& [k, v] : analysis.members()) summary[k] = v;
+  summary["timing"] = timing_json(*p, sched, result, clock_name == "sim", sim_seconds);
+  summary["recording"] = lode::Json::object();
+  summary["recording"]["samples"] = static_cast<std::uint64_t>(rec.rows.size() / rec.tap->stride());
+  summary["recording"]["dropped"] = rec.tap->dropped();
+  summary["rt_log_dropped"] = lode::rt_log_ring().dropped();
+  summary["warnings"] = lode::Json::array();
+  for (const auto& w : result.warnings) summary["warnings"].push(w);
+  summary["events"] = events.to_json();
+
+  // Timing, human-readable.
+  const auto& tj = *summary.find("timing");
+  if (clock_name == "real") {
+    const auto& wl = *tj.find("wake_latency");
+    std::printf("  timing: %llu cycles at %.1f Hz achieved; wake-up latency p50 %.1f us, p99 %.1f us, "
+                "p99.9 %.1f us, max %.1f us; overruns %llu, missed periods %llu\n",
+                static_cast<unsigned long long>(st.cycles.load()), tj.find("achieved_rate_hz")->as_number(),
+                wl.find("p50_us")->as_number(), wl.find("p99_us")->as_number(),
+                wl.find("p999_us")->as_number(), wl.find("max_us")->as_number(),
+                static_cast<unsigned long long>(st.overruns.load()),
+                static_cast<unsigned long long>(st.missed_periods.load()));
+  } else {
+    std::printf("  timing: %llu cycles simulated in %.3f s wall (%.0fx real time)\n",
+                static_cast<unsigned long long>(st.cycles.load()), result.wall_s,
+                tj.find("speed_vs_realtime")->as_number());
+  }
+  std::printf("  step cost per block (p50 / p99 / max, us):");
+  for (const auto& op : p->ops())
+    std::printf("  %s %.2f/%.2f/%.1f", op.label.c_str(), static_cast<double>(op.exec_time->percentile(0.5)) / 1e3,
+                static_cast<double>(op.exec_time->percentile(0.99)) / 1e3,
+                static_cast<double>(op.exec_time->max()) / 1e3);
+  std::printf("\n");
+  if (rec.tap->dropped() > 0)
+    std::printf("  WARNING: %llu recorded samples dropped (consumer too slow)\n",
+                static_cast<unsigned long long>(rec.tap->dropped()));
+  if (result.faulted) std::printf("  FAULT: %s (outputs driven safe)\n", result.fault.c_str());
+
+  if (args.options.count("--summary-json")) {
+    const auto& path = args.options.at("--summary-json");
+    std::ofstream f(path);
+    if (!f) {
+      std::fprintf(stderr, "lode: cannot write %s\n", path.c_str());
+      return kExitFault;
+    }
+    f << summary.dump() << "\n";
+  }
+  return result.faulted ? kExitFault : kExitOk;
+}
+
+// ---------------------------------------------------------------------------------------
+int cmd_bench(const Args& args) {
+  if (args.positional.size() != 1) {
+    std::fputs(kUsage, stderr);
+    return kExitConfig;
+  }
+  lode::PluginRegistry reg;
+  auto p = load_or_report(args.positional[0], reg);
+  if (!p) return kExitConfig;
+  std::uint64_t cycles = 100000;
+  if (args.options.count("--cycles")) cycles = std::strtoull(args.options.at("--cycles").c_str(), nullptr, 10);
+  if (auto st = p->activate(); !st) {
+    std::fprintf(stderr, "lode: %s\n", st.message().c_str());
+    return kExitFault;
+  }
+  lode::Histogram whole;
+  lode::Tick tick;
+  tick.dt_s = 1.0 / p->rate_hz();
+  lode::RealClock clock;
+  for (std::uint64_t k = 0; k < cycles; ++k) {
+    tick.cycle = k;
+    tick.time_ns = static_cast<std::int64_t>(k) * p->period_ns();
+    const auto t0 = clock.now_ns();
+    const auto r = p->run_cycle(tick, true);
+    whole.record(clock.now_ns() - t0);
+    if (r.status != lode::StepStatus::ok) {
+      std::fprintf(stderr, "lode: fault at cycle %llu in %s\n", static_cast<unsigned long long>(k),
+                   p->ops()[static_cast<std::size_t>(r.failed_op)].label.c_str());
+      return kExitFault;
+    }
+  }
+  p->deactivate();
+  std::printf("%-22s %10s %10s %10s %10s\n", "operation", "p50 ns", "p99 ns", "mean ns", "max ns");
+  for (const auto& op : p->ops())
+    std::printf("%-22s %10lld %10lld %10.0f %10lld\n", op.label.c_str(),
+                static_cast<long long>(op.exec_time->percentile(0.5)),
+                static_cast<long long>(op.exec_time->percentile(0.99)), op.exec_time->mean(),
+                static_cast<long long>(op.exec_time->max()));
+  std::printf("%-22s %10lld %10lld %10.0f %10lld   (%llu cycles, includes timing overhead)\n",
+              "whole cycle", static_cast<long long>(whole.percentile(0.5)),
+              static_cast<long long>(whole.percentile(0.99)), whole.mean(),
+              static_cast<long long>(whole.max()), static_cast<unsigned long long>(cycles));
+  return kExitOk;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  spdlog::set_pattern("[%H:%M:%S.%e] [%^%l%$] %v");
+  const auto args = parse_args(argc, argv);
+  if (!args || args->command == "-h" || args->command == "--help" || args->command == "help") {
+    std::fputs(kUsage, args ? stdout : stderr);
+    return args ? kExitOk : kExitConfig;
+  }
+  try {
+    if (args->command == "run") return cmd_run(*args);
+    if (args->command == "check") return cmd_check(*args);
+    if (args->command == "describe") return cmd_describe(*args);
+    if (args->command == "plugins") return cmd_plugins(*args);
+    if (args->command == "bench") return cmd_bench(*args);
+    if (args->command == "rtcheck") return cmd_rtcheck(*args);
+  } catch (const std::exception& ex) {
+    std::fprintf(stderr, "lode: internal error: %s\n", ex.what());
+    return kExitFault;
+  }
+  std::fprintf(stderr, "lode: unknown command '%s'\n\n%s", args->command.c_str(), kUsage);
+  return kExitConfig;
+}

@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# lodestone: install every dependency (Debian 12 packages), build, then run the demo or the tests.
+#
+#   ./setup.sh demo    install, build, run config/kawato_planar.yaml (simulated clock)
+#   ./setup.sh test    install, build, run every test (ctest)
+#
+# Run as root on a fresh Debian 12 (or with sudo available). Safe to re-run.
+set -euo pipefail
+cd "$(dirname "$0")"
+mode=${1:-demo}
+case "$mode" in demo|test|build) ;; *) echo "usage: $0 demo|test|build" >&2; exit 2 ;; esac
+
+PACKAGES=(build-essential g++ cmake make pkg-config
+  libeigen3-dev libyaml-cpp-dev libspdlog-dev libfmt-dev
+  libgtest-dev libgmock-dev libbenchmark-dev rt-tests)
+
+as_root() { if [ "$(id -u)" -eq 0 ]; then "$@"; else sudo "$@"; fi; }
+missing=()
+for p in "${PACKAGES[@]}"; do dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p"); done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "setup: installing ${missing[*]}"
+  as_root apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive as_root apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+jobs=$(nproc)
+cmake -S . -B build -DCMAKE_BUILD_TYPE=RelWithDebInfo
+cmake --build build -j"$jobs"
+
+case "$mode" in
+  demo) ./build/apps/lode run config/kawato_planar.yaml ;;
+  test) cd build && ctest --output-on-failure -j"$jobs" ;;
+  build) ;;
+esac

@@ -1,0 +1,160 @@
+// Core mechanisms: units, histograms, rings, parameter diagnostics, JSON.
+#include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <random>
+#include <thread>
+
+#include "lode/histogram.hpp"
+#include "lode/json.hpp"
+#include "lode/params.hpp"
+#include "lode/rt_log.hpp"
+#include "lode/scheduler.hpp"
+#include "lode/units.hpp"
+#include "../../core/src/params_node.hpp"
+
+namespace {
+
+TEST(Units, CanonicalSpellingsCompare) {
+  EXPECT_TRUE(lode::units_compatible("N*m", "N.m"));
+  EXPECT_TRUE(lode::units_compatible("N m", "N*m"));
+  EXPECT_TRUE(lode::units_compatible("rad/s^2", "rad/s2"));
+  EXPECT_TRUE(lode::units_compatible("", "1"));
+  EXPECT_TRUE(lode::units_compatible("V", "*"));
+  EXPECT_FALSE(lode::units_compatible("m", "rad"));
+  EXPECT_FALSE(lode::units_compatible("N", "N*m"));
+}
+
+TEST(Histogram, PercentilesWithinBinResolution) {
+  lode::Histogram h;
+  std::mt19937_64 rng(3);
+  std::vector<std::int64_t> values;
+  std::uniform_int_distribution<std::int64_t> d(1000, 2'000'000);
+  for (int i = 0; i < 20000; ++i) {
+    values.push_back(d(rng));
+    h.record(values.back());
+  }
+  std::sort(values.begin(), values.end());
+  for (double q : {0.5, 0.9, 0.99}) {
+    const double exact = static_cast<double>(values[static_cast<std::size_t>(q * (values.size() - 1))]);
+    EXPECT_NEAR(static_cast<double>(h.percentile(q)), exact, exact * 0.04) << q;
+  }
+  EXPECT_EQ(h.max(), values.back());
+  EXPECT_EQ(h.min(), values.front());
+  EXPECT_EQ(h.count(), 20000u);
+}
+
+TEST(Histogram, BinEdgesAreMonotonicAndContainValues) {
+  for (std::int64_t v : {0LL, 1LL, 31LL, 32LL, 33LL, 1000LL, 123456789LL, 40'000'000'000LL}) {
+    const int b = lode::Histogram::bin_of(v);
+    EXPECT_LE(v, lode::Histogram::upper_edge(b)) << v;
+    if (b > 0) {
+      EXPECT_GT(v, lode::Histogram::upper_edge(b - 1) - 1) << v;
+    }
+  }
+}
+
+TEST(RtLogRing, DropsAndCountsWhenFullNeverBlocks) {
+  lode::RtLogRing ring;
+  lode::LogRecord r;
+  r.format = "x {}";
+  std::size_t pushed = 0;
+  for (std::size_t i = 0; i < lode::RtLogRing::kCapacity + 10; ++i) pushed += ring.push(r) ? 1 : 0;
+  EXPECT_EQ(pushed, lode::RtLogRing::kCapacity);
+  EXPECT_EQ(ring.dropped(), 10u);
+  lode::LogRecord out;
+  std::size_t popped = 0;
+  while (ring.pop(out)) ++popped;
+  EXPECT_EQ(popped, lode::RtLogRing::kCapacity);
+}
+
+TEST(RtLogRing, ConcurrentProducersLoseNothingBelowCapacity) {
+  lode::RtLogRing ring;
+  std::vector<std::thread> producers;
+  for (int t = 0; t < 4; ++t)
+    producers.emplace_back([&, t] {
+      for (int i = 0; i < 500; ++i) {
+        lode::LogRecord r;
+        r.args[0] = t;
+        r.args[1] = i;
+        ring.push(r);
+      }
+    });
+  for (auto& p : producers) p.join();
+  lode::LogRecord out;
+  std::array<int, 4> next{};
+  std::size_t n = 0;
+  while (ring.pop(out)) {
+    const auto t = static_cast<std::size_t>(out.args[0]);
+    EXPECT_EQ(static_cast<int>(out.args[1]), next[t]++);  // per-producer order kept
+    ++n;
+  }
+  EXPECT_EQ(n, 2000u);
+  EXPECT_EQ(ring.dropped(), 0u);
+}
+
+TEST(SignalTap, CountsDropsWhenConsumerStalls) {
+  std::vector<double> values = {1.0, 2.0};
+  lode::Elements e = {{"a", "m"}, {"b", "m"}};
+  lode::SignalRef ref{"blk", "out", values.data(), &e};
+  lode::SignalTap tap({ref}, 8);
+  for (int k = 0; k < 10; ++k) {
+    values[0] = k;
+    tap.capture(static_cast<std::uint64_t>(k), k * 1000);
+  }
+  EXPECT_EQ(tap.dropped(), 2u);
+  std::vector<double> rows;
+  EXPECT_EQ(tap.drain(rows), 8u);
+  ASSERT_EQ(rows.size(), 8u * tap.stride());
+  EXPECT_EQ(rows[0], 0.0);                     // cycle 0 first
+  EXPECT_EQ(rows[7 * tap.stride() + 2], 7.0);  // value of cycle 7 last
+}
+
+struct ParamsFixture : ::testing::Test {
+  lode::Diagnostics diag;
+  lode::Params load(const std::string& text) {
+    node = YAML::Load(text);
+    return lode::detail::make_params(node, "blocks.b", "test.yaml", &diag);
+  }
+  YAML::Node node;
+};
+
+TEST_F(ParamsFixture, ReportsLocatedErrorsAndUnknownKeys) {
+  auto p = load("gain: 2.5\nmode: fast\nlimit: abc\ngian_typo: 1\n");
+  EXPECT_DOUBLE_EQ(p.number("gain"), 2.5);
+  EXPECT_EQ(p.choice("mode", {"slow", "exact"}, "slow"), "slow");
+  p.number("limit");
+  p.number("required_one");
+  lode::detail::report_unread_keys(p);
+  const auto text = diag.format();
+  EXPECT_NE(text.find("test.yaml:2:7: blocks.b.mode: 'fast' is not one of: slow, exact"), std::string::npos) << text;
+  EXPECT_NE(text.find("test.yaml:3:8: blocks.b.limit: expected a finite number, got 'abc'"), std::string::npos) << text;
+  EXPECT_NE(text.find("missing required parameter 'required_one'"), std::string::npos) << text;
+  EXPECT_NE(text.find("test.yaml:4:1: blocks.b.gian_typo: unknown parameter 'gian_typo'"), std::string::npos) << text;
+  EXPECT_FALSE(p.ok());
+}
+
+TEST_F(ParamsFixture, ListsAndNestedMaps) {
+  auto p = load("q: [1, 2, 3]\naxes:\n  - {k: 1}\n  - {k: 2, extra: 3}\n");
+  EXPECT_EQ(p.numbers("q", 3).size(), 3u);
+  p.numbers("q", 2);
+  auto items = p.items("axes");
+  ASSERT_EQ(items.size(), 2u);
+  EXPECT_EQ(items[1].number("k"), 2.0);
+  items[0].number("k");
+  lode::detail::report_unread_keys(p);
+  const auto text = diag.format();
+  EXPECT_NE(text.find("expected 2 numbers, got 3"), std::string::npos) << text;
+  EXPECT_NE(text.find("blocks.b.axes[1].extra: unknown parameter"), std::string::npos) << text;
+}
+
+TEST(Json, DumpsOrderedAndEscaped) {
+  lode::Json j = lode::Json::object();
+  j["b"] = 1.5;
+  j["a"] = "x\"y";
+  j["v"] = std::vector<double>{1, 2};
+  EXPECT_EQ(j.dump(-1), R"({"b": 1.5, "a": "x\"y", "v": [1, 2]})");
+}
+
+}  // namespace
