@@ -192,6 +192,7 @@ struct Recording {
   std::unique_ptr<lode::SignalTap> tap;
   std::vector<double> rows;
   int show = -1, estimate = -1, truth = -1, reference = -1;
+  std::vector<int> extra;  ///< monitor.record signals
 };
 
 std::string format_value(double v, const std::string& unit) {
@@ -276,6 +277,22 @@ lode::Json analyse(const lode::Pipeline& p, const Recording& rec, std::string_vi
       out["estimation_error"] = stats_json(err, est.elements);
       print_stats("estimation error (estimate-truth)", err, est.elements, false);
     }
+    lode::Json others = lode::Json::object();
+    for (const int index : rec.extra) {
+      const auto series = column_series(rec, index);
+      const auto& name = rec.tap->signals()[static_cast<std::size_t>(index)].name();
+      lode::Json oj = lode::Json::object();
+      const auto hold = window_stats(t, series, nullptr, h0, h1);
+      oj["hold_noise"] = stats_json(hold, series.elements);
+      print_stats(("  as " + name + " reports it").c_str(), hold, series.elements, true);
+      if (series.width() == truth.width()) {
+        const auto err = window_stats(t, series, &truth, 0.0, t.back());
+        oj["error_vs_truth"] = stats_json(err, series.elements);
+        print_stats(("  " + name + " - truth").c_str(), err, series.elements, false);
+      }
+      others[name] = std::move(oj);
+    }
+    if (!rec.extra.empty()) out["recorded"] = std::move(others);
     out["position_noise"] = std::move(noise);
     if (rec.reference >= 0) {
       const auto ref = column_series(rec, rec.reference);
@@ -377,7 +394,7 @@ int cmd_run(const Args& args) {
   rec.estimate = add(mon.estimate);
   rec.truth = add(mon.truth);
   rec.reference = add(mon.reference);
-  for (const auto& s : mon.record) add(s);
+  for (const auto& s : mon.record) rec.extra.push_back(add(s));
   rec.tap = std::make_unique<lode::SignalTap>(tapped, 1 << 15);
   rec.rows.reserve(cycles * rec.tap->stride() + 16);
 

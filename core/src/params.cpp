@@ -37,9 +37,10 @@ Params make_params(const YAML::Node& map, std::string path, std::string file,
 
 void report_unread_keys(const Params& root) {
   const auto& tree = root.node()->tree;
-  for (const auto& weak : tree->maps) {
-    auto n = weak.lock();
-    if (!n || !n->node.IsMap()) continue;
+  const auto maps = std::move(tree->maps);
+  tree->maps.clear();
+  for (const auto& n : maps) {
+    if (!n->node.IsMap()) continue;
     std::vector<std::string> known(n->read_keys.begin(), n->read_keys.end());
     for (const auto& kv : n->node) {
       const auto key = kv.first.as<std::string>();

@@ -18,7 +18,10 @@ struct ParamsTree {
   Diagnostics* diagnostics = nullptr;  ///< where problems go (owned by the loader)
   std::string file;
   std::size_t errors = 0;
-  std::vector<std::weak_ptr<ParamsNode>> maps;  ///< every map node handed out, for unknown-key checks
+  /// Every map node handed out, kept alive until report_unread_keys() so that maps a plugin
+  /// read through a temporary (items(), child()) are still checked. report_unread_keys()
+  /// clears it, which also breaks the node -> tree -> node reference cycle.
+  std::vector<std::shared_ptr<ParamsNode>> maps;
 };
 
 struct ParamsNode {
@@ -34,7 +37,7 @@ SourceLocation location_of(const YAML::Node& node, const std::string& file);
 Params make_params(const YAML::Node& map, std::string path, std::string file,
                    Diagnostics* diagnostics, const std::vector<std::string>& ignored_keys = {});
 
-/// Report keys of every map in the tree that configure() never read.
+/// Report keys of every map in the tree that configure() never read; call once per tree.
 void report_unread_keys(const Params& root);
 
 /// Top-level keys read by configure() (for the descriptor cross-check).

@@ -586,7 +586,7 @@ void Pipeline::Impl::resolve_inputs() {
         continue;
       }
       const BlockEntry* src = find_block(w.src_block);
-      if (!src || !src->block) continue;  // reported already
+      if (!src || !src->configured) continue;  // reported already (a feed has no block but is configured)
       const DeclaredOutput* out = src->output(w.src_port);
       if (!out) {
         std::string names;

@@ -143,6 +143,7 @@ TEST_F(ParamsFixture, ListsAndNestedMaps) {
   ASSERT_EQ(items.size(), 2u);
   EXPECT_EQ(items[1].number("k"), 2.0);
   items[0].number("k");
+  items.clear();  // plugins often read nested maps through temporaries
   lode::detail::report_unread_keys(p);
   const auto text = diag.format();
   EXPECT_NE(text.find("expected 2 numbers, got 3"), std::string::npos) << text;
