@@ -1,0 +1,343 @@
+#include "kalman.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <complex>
+#include <cstdio>
+#include <string>
+
+#include "lode/plugin.hpp"
+#include "lode/units.hpp"
+
+namespace lode::plugins {
+
+namespace kalman {
+
+template <int N>
+SteadyState<N> steady_state(const AxisModel<N>& model, double r, double p0) {
+  using Matrix = typename AxisModel<N>::Matrix;
+  using Vector = typename AxisModel<N>::Vector;
+  SteadyState<N> result;
+  const Matrix process_noise = model.process_noise();
+  Matrix prior_cov = p0 * Matrix::Identity();
+  Vector previous_gain = Vector::Zero();
+  for (int iteration = 1; iteration <= kRiccatiMaxIterations; ++iteration) {
+    Vector gain;
+    Matrix next;
+    covariance_step(model, process_noise, prior_cov, r, gain, next);
+    result.gain = gain;
+    result.prior_cov = prior_cov;
+    result.iterations = iteration;
+    if (!gain.allFinite() || !next.allFinite()) break;
+    // Converged when no gain element moved by more than kRiccatiTolerance of itself.
+    bool settled = iteration > 1;
+    for (int i = 0; i < N && settled; ++i) {
+      settled = std::abs(gain(i) - previous_gain(i)) <= kRiccatiTolerance * std::abs(gain(i));
+    }
+    if (settled) {
+      result.converged = true;
+      break;
+    }
+    previous_gain = gain;
+    prior_cov = next;
+  }
+
+  // A-priori error dynamics e^-_{k+1} = Phi (I - K H) e^-_k.
+  Matrix i_minus_kh = Matrix::Identity();
+  i_minus_kh.col(0) -= result.gain;
+  const Matrix error_dynamics = model.phi * i_minus_kh;
+  if (error_dynamics.allFinite()) {
+    Eigen::EigenSolver<Matrix> solver(error_dynamics, false);
+    for (int i = 0; i < N; ++i) {
+      const std::complex<double> z = solver.eigenvalues()(i);
+      result.poles[static_cast<std::size_t>(i)] = {z.real(), z.imag()};
+    }
+  }
+  return result;
+}
+
+template SteadyState<2> steady_state<2>(const AxisModel<2>&, double, double);
+template SteadyState<3> steady_state<3>(const AxisModel<3>&, double, double);
+
+}  // namespace kalman
+
+namespace {
+
+using kalman::kMaxAxes;
+
+std::string number_text(double value) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%g", value);
+  return buffer;
+}
+
+/// A per-axis list that may also be written as one number for every axis.
+std::vector<double> per_axis(Params& params, std::string_view key, std::vector<double> values,
+                             std::size_t axes) {
+  if (values.size() == 1 && axes > 1) values.assign(axes, values.front());
+  if (values.size() != axes) {
+    params.fail(key, "expected one number or " + std::to_string(axes) + " (one per measured axis), got " +
+                         std::to_string(values.size()));
+    values.resize(axes, values.empty() ? 0.0 : values.back());
+  }
+  return values;
+}
+
+template <typename Derived>
+Json matrix_json(const Eigen::MatrixBase<Derived>& m) {
+  Json rows = Json::array();
+  for (Eigen::Index i = 0; i < m.rows(); ++i) {
+    std::vector<double> row;
+    for (Eigen::Index j = 0; j < m.cols(); ++j) row.push_back(m(i, j));
+    rows.push(Json(row));
+  }
+  return rows;
+}
+
+template <typename Derived>
+std::vector<double> vector_values(const Eigen::MatrixBase<Derived>& v) {
+  std::vector<double> out;
+  for (Eigen::Index i = 0; i < v.size(); ++i) out.push_back(v(i));
+  return out;
+}
+
+}  // namespace
+
+Status KalmanEstimator::configure(ConfigureContext& ctx) {
+  Params& params = ctx.params();
+  period_s_ = ctx.period_s();
+
+  const std::string motion = params.choice(
+      "motion", {"constant_acceleration", "constant_velocity"}, std::string_view("constant_acceleration"));
+  motion_ = motion == "constant_velocity" ? kalman::Motion::constant_velocity
+                                          : kalman::Motion::constant_acceleration;
+  const std::string output = params.choice("output", {"predicted", "filtered"}, std::string_view("predicted"));
+  timing_ = output == "filtered" ? kalman::OutputTiming::filtered : kalman::OutputTiming::predicted;
+  initialize_from_first_measurement_ = params.flag("initialize_from_first_measurement", true);
+
+  ctx.declare_input(measurement_, "measurement", {}, true);
+  ctx.declare_input(covariance_, "covariance", {}, false);
+
+  // The measurement's source fixes the number of axes and the output names and units.
+  const Elements* source = ctx.input_source("measurement");
+  if (source == nullptr) {
+    // Not connected, or its source failed to configure (reported there).
+    params.fail("inputs",
+                "the measurement input must be connected to a configured block's output: its elements "
+                "(names, units, count) size the filter");
+  } else if (source->empty() || source->size() > kMaxAxes) {
+    params.fail("inputs", "the measurement must have 1 to " + std::to_string(kMaxAxes) + " elements, got " +
+                              std::to_string(source->size()));
+  } else {
+    measurement_elements_ = *source;
+    for (const Element& e : measurement_elements_) {
+      if (e.unit == kAnyUnit) {
+        params.fail("inputs", "measurement element '" + e.name + "' has no definite unit ('*')");
+      }
+    }
+  }
+  axes_ = measurement_elements_.size();
+
+  // Read every key first (so none is reported as unknown), then check sizes against n.
+  q_ = params.numbers("q");
+  p0_ = params.numbers("p0", std::vector<double>{1e-8});
+  r_ = params.numbers("r", std::vector<double>{});
+  if (axes_ > 0 && params.has("q")) {
+    q_ = per_axis(params, "q", q_, axes_);
+    p0_ = per_axis(params, "p0", p0_, axes_);
+    if (!r_.empty()) r_ = per_axis(params, "r", r_, axes_);
+  }
+  for (double q : q_) {
+    if (q < 0.0) params.fail("q", "Q_k (eq. 4.41) must be >= 0, got " + number_text(q));
+  }
+  for (double p0 : p0_) {
+    if (!(p0 > 0.0)) params.fail("p0", "P0 = p0 I must be positive definite, got p0 = " + number_text(p0));
+  }
+  for (double r : r_) {
+    if (!(r > 0.0)) params.fail("r", "measurement variance must be > 0, got " + number_text(r));
+  }
+
+  const Elements* covariance_source = ctx.input_source("covariance");
+  if (covariance_source != nullptr && covariance_source->size() != axes_ * axes_) {
+    params.fail("inputs", "covariance must have n*n = " + std::to_string(axes_ * axes_) +
+                              " elements (row-major R_k, eq. 4.28), got " +
+                              std::to_string(covariance_source->size()));
+  }
+  if (r_.empty() && covariance_source == nullptr) {
+    params.fail("r",
+                "no measurement variance: give r (per-axis variance, e.g. 2.2e-10 m^2) or connect the "
+                "covariance input (R_k from estimator.glsdc)");
+  }
+
+  if (!params.ok()) return Status::error("invalid parameters");
+
+  for (std::size_t i = 0; i < axes_; ++i) {
+    if (motion_ == kalman::Motion::constant_acceleration) {
+      ca_filters_[i].configure(kalman::AxisModel<3>::make(period_s_, q_[i]), p0_[i]);
+    } else {
+      cv_filters_[i].configure(kalman::AxisModel<2>::make(period_s_, q_[i]), p0_[i]);
+    }
+  }
+
+  Elements velocity;
+  Elements acceleration;
+  for (const Element& e : measurement_elements_) {
+    velocity.push_back({e.name + "_dot", e.unit + "/s"});
+    acceleration.push_back({e.name + "_ddot", e.unit + "/s^2"});
+  }
+  ctx.declare_output(pose_, "pose", measurement_elements_);
+  ctx.declare_output(velocity_, "velocity", velocity);
+  if (motion_ == kalman::Motion::constant_acceleration) {
+    ctx.declare_output(acceleration_, "acceleration", acceleration);
+  }
+  ctx.declare_output(innovation_, "innovation", measurement_elements_);
+  return params.ok() ? Status::ok() : Status::error("invalid parameters");
+}
+
+Status KalmanEstimator::activate() {
+  use_covariance_input_ = covariance_.connected();
+  if (use_covariance_input_ && covariance_.size() != axes_ * axes_) {
+    return Status::error("estimator.kalman: the covariance input has " + std::to_string(covariance_.size()) +
+                         " elements, expected " + std::to_string(axes_ * axes_));
+  }
+  if (!use_covariance_input_ && r_.empty()) {
+    return Status::error("estimator.kalman: no measurement variance: give r or connect the covariance input");
+  }
+  for (std::size_t i = 0; i < axes_; ++i) {
+    ca_filters_[i].reset();
+    cv_filters_[i].reset();
+    pose_[i] = 0.0;
+    velocity_[i] = 0.0;
+    if (acceleration_.bound()) acceleration_[i] = 0.0;
+    innovation_[i] = 0.0;
+  }
+  first_cycle_ = true;
+  return Status::ok();
+}
+
+StepStatus KalmanEstimator::step(const Tick& /*tick*/) noexcept {
+  // Check every input before touching any axis, so a fault leaves the filter as it was.
+  for (std::size_t i = 0; i < axes_; ++i) {
+    if (!std::isfinite(measurement_[i])) return fault("non-finite measurement");
+    const double r = use_covariance_input_ ? covariance_[i * axes_ + i] : r_[i];
+    if (!(r > 0.0) || !std::isfinite(r)) return fault("measurement variance R(i,i) <= 0 or not finite");
+    variance_[i] = r;
+  }
+  return motion_ == kalman::Motion::constant_acceleration ? run(ca_filters_) : run(cv_filters_);
+}
+
+template <int N>
+StepStatus KalmanEstimator::run(std::array<kalman::AxisFilter<N>, kMaxAxes>& filters) noexcept {
+  for (std::size_t i = 0; i < axes_; ++i) {
+    kalman::AxisFilter<N>& filter = filters[i];
+    if (first_cycle_ && initialize_from_first_measurement_) filter.set_prior_position(measurement_[i]);
+    if (!filter.update_and_propagate(measurement_[i], variance_[i])) {
+      return fault("Kalman update gave a non-finite state or covariance");
+    }
+    const auto& x = timing_ == kalman::OutputTiming::predicted ? filter.predicted() : filter.filtered();
+    pose_[i] = x(kalman::kPosition);
+    velocity_[i] = x(kalman::kVelocity);
+    if constexpr (N == 3) acceleration_[i] = x(kalman::kAcceleration);
+    innovation_[i] = filter.innovation();
+  }
+  first_cycle_ = false;
+  return StepStatus::ok;
+}
+
+template <int N>
+void KalmanEstimator::describe_axes(const std::array<kalman::AxisFilter<N>, kMaxAxes>& filters,
+                                    Json& out) const {
+  Json axes = Json::array();
+  for (std::size_t i = 0; i < axes_; ++i) {
+    const kalman::AxisModel<N>& model = filters[i].model();
+    const Element& e = measurement_elements_[i];
+    Json axis = Json::object();
+    axis["name"] = e.name;
+    axis["unit"] = e.unit;
+    axis["q"] = q_[i];
+    axis["q_unit"] = e.unit + (N == 3 ? "^2/s^6" : "^2/s^4");
+    axis["p0"] = p0_[i];
+    axis["phi"] = matrix_json(model.phi);
+    axis["upsilon"] = vector_values(model.upsilon);
+    axis["process_noise"] = matrix_json(model.process_noise());
+    if (r_.empty()) {
+      axis["steady_state"] = "needs a constant r (R_k comes from the covariance input)";
+    } else {
+      const kalman::SteadyState<N> ss = kalman::steady_state(model, r_[i], p0_[i]);
+      Json s = Json::object();
+      s["r"] = r_[i];
+      s["gain"] = vector_values(ss.gain);
+      std::vector<std::string> units{"1", "1/s", "1/s^2"};
+      Json gain_units = Json::array();
+      for (int k = 0; k < N; ++k) gain_units.push(units[static_cast<std::size_t>(k)]);
+      s["gain_units"] = std::move(gain_units);
+      s["prior_covariance"] = matrix_json(ss.prior_cov);
+      s["converged"] = ss.converged;
+      s["iterations"] = ss.iterations;
+      s["tolerance"] = "relative change of every gain element <= 1e-12 between iterations";
+      Json poles = Json::array();
+      for (const auto& z : ss.poles) {
+        const std::complex<double> pole(z[0], z[1]);
+        Json p = Json::object();
+        p["re"] = z[0];
+        p["im"] = z[1];
+        p["abs"] = std::abs(pole);
+        p["continuous_rad_s"] = std::abs(std::log(pole)) / period_s_;  // |ln z| / T
+        poles.push(std::move(p));
+      }
+      s["error_poles_z"] = std::move(poles);
+      axis["steady_state"] = std::move(s);
+    }
+    axes.push(std::move(axis));
+  }
+  out["axes"] = std::move(axes);
+}
+
+void KalmanEstimator::describe(Json& out) const {
+  out["motion"] = motion_ == kalman::Motion::constant_acceleration ? "constant_acceleration" : "constant_velocity";
+  out["output"] = timing_ == kalman::OutputTiming::predicted ? "predicted (x^-_{k+1})" : "filtered (x^+_k)";
+  out["initialize_from_first_measurement"] = initialize_from_first_measurement_;
+  out["period_s"] = period_s_;
+  out["measurement_variance"] = r_.empty() ? "covariance input (diagonal of R_k)"
+                                           : "covariance input if connected, else r";
+  out["covariance_update"] = "Joseph form, symmetrised after propagation";
+  if (motion_ == kalman::Motion::constant_acceleration) {
+    describe_axes(ca_filters_, out);
+  } else {
+    describe_axes(cv_filters_, out);
+  }
+}
+
+namespace {
+
+constexpr ParamDoc kParams[] = {
+    {"motion", "text", "constant_acceleration",
+     "constant_acceleration (3 states per axis, Phi/Upsilon eq. 4.39) or constant_velocity (2 states)"},
+    {"q", "list<number>", nullptr,
+     "Q_k of eq. 4.41 per axis (or one number for all): jerk variance [unit^2/s^6] for "
+     "constant_acceleration, acceleration variance [unit^2/s^4] for constant_velocity; >= 0"},
+    {"p0", "number|list<number>", "1e-8", "initial covariance P0 = p0 I per axis (thesis: 1e-8 for all states)"},
+    {"r", "number|list<number>", "none",
+     "constant measurement variance per axis [unit^2]; used when the covariance input is not connected "
+     "and for the steady-state gains in describe()"},
+    {"output", "text", "predicted", "predicted (x^-_{k+1}, as the thesis outputs) or filtered (x^+_k)"},
+    {"initialize_from_first_measurement", "bool", "true",
+     "position state starts at the first measurement (false: x^-_0 = 0, the thesis)"},
+};
+
+constexpr PortDoc kPorts[] = {
+    {"measurement", "in", "n <= 6 measured positions, any names and units (e.g. glsdc.pose)"},
+    {"covariance", "in", "optional n*n row-major R_k (eq. 4.28); the diagonal is used per axis"},
+    {"pose", "out", "estimated positions, same names and units as the measurement"},
+    {"velocity", "out", "<name>_dot [<unit>/s]"},
+    {"acceleration", "out", "<name>_ddot [<unit>/s^2], constant_acceleration only"},
+    {"innovation", "out", "y_k - H x^-_k, same names and units as the measurement"},
+};
+
+}  // namespace
+
+}  // namespace lode::plugins
+
+LODE_PLUGIN(lode::plugins::KalmanEstimator, "estimator.kalman", lode::PluginKind::block, "0.1.0",
+            "Per-axis linear Kalman filter (constant acceleration or velocity) after the GLSDC, Table III",
+            lode::plugins::kParams, lode::plugins::kPorts)

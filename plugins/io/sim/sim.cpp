@@ -1,0 +1,408 @@
+#include "sim.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+#include <set>
+
+#include "lode/plugin.hpp"
+#include "lode/units.hpp"
+
+namespace lode::plugins {
+
+namespace {
+
+std::string number_text(double value) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%g", value);
+  return buffer;
+}
+
+std::string name_list(const Elements& elements) {
+  std::string out;
+  for (const auto& e : elements) out += (out.empty() ? "" : ", ") + e.name;
+  return out;
+}
+
+Elements with_unit(const Elements& elements, const std::string& unit) {
+  Elements out = elements;
+  for (auto& e : out) e.unit = unit;
+  return out;
+}
+
+/// Widest converter whose counts stay exact in a double with a wide margin.
+constexpr std::int64_t kMaxAdcBits = 32;
+constexpr std::int64_t kMaxSubsteps = 100000;
+
+}  // namespace
+
+Status SimBoard::configure(ConfigureContext& ctx) {
+  Params& params = ctx.params();
+
+  // --- plant ---------------------------------------------------------------------------
+  plant_name_ = params.text("plant");
+  if (!plant_name_.empty()) plant_ = ctx.plant_model("plant");  // nullptr: the context said why
+  const Elements no_elements;
+  const Elements& plant_inputs = plant_ ? plant_->inputs() : no_elements;
+  const Elements& plant_outputs = plant_ ? plant_->outputs() : no_elements;
+  input_count_ = plant_inputs.size();
+
+  // --- sensors -------------------------------------------------------------------------
+  const Status sensors_status = configure_sensors(ctx, params);
+
+  // --- acquisition chain ---------------------------------------------------------------
+  noise_std_v_ = params.number("noise_std_v", 1e-3);
+  params.check(noise_std_v_ >= 0.0, "noise_std_v", "must be >= 0 V, got " + number_text(noise_std_v_));
+  adc_bits_ = params.integer("adc_bits", 16);
+  if (!(adc_bits_ == 0 || (adc_bits_ >= 2 && adc_bits_ <= kMaxAdcBits))) {
+    params.fail("adc_bits", "must be 0 (no quantization) or within 2 ... 32, got " +
+                                std::to_string(adc_bits_));
+    adc_bits_ = 0;
+  }
+  adc_range_v_ = params.number("adc_range_v", 10.0);
+  params.check(adc_range_v_ > 0.0, "adc_range_v",
+               "must be > 0 V (the converter spans +-adc_range_v), got " + number_text(adc_range_v_));
+  if (adc_bits_ > 0 && adc_range_v_ > 0.0) {
+    // Bipolar converter, two's-complement codes -2^(b-1) ... 2^(b-1)-1 over +-range.
+    const double code_count = std::ldexp(1.0, static_cast<int>(adc_bits_));
+    lsb_v_ = 2.0 * adc_range_v_ / code_count;
+    count_min_ = -0.5 * code_count;
+    count_max_ = 0.5 * code_count - 1.0;
+  }
+  mains_amplitude_v_ = params.number("mains_amplitude_v", 0.0);
+  params.check(mains_amplitude_v_ >= 0.0, "mains_amplitude_v",
+               "must be >= 0 V, got " + number_text(mains_amplitude_v_));
+  mains_frequency_hz_ = params.number("mains_frequency_hz", 60.0);
+  params.check(mains_frequency_hz_ >= 0.0, "mains_frequency_hz",
+               "must be >= 0 Hz, got " + number_text(mains_frequency_hz_));
+  mains_phase_rad_ = params.number("mains_phase_rad", 0.0);
+  // Sizes are only enforced when known: a failed model must not cause follow-on errors.
+  channel_offset_v_ = params.numbers(
+      "channel_offset_v", std::vector<double>(channel_count_, 0.0),
+      sensors_status ? std::optional<std::size_t>(channel_count_) : std::nullopt);
+  channel_offset_v_.resize(channel_count_, 0.0);
+  seed_ = static_cast<std::uint64_t>(params.integer("seed", 1));
+
+  // --- commands ------------------------------------------------------------------------
+  safe_command_ = params.numbers("safe_command", std::vector<double>(input_count_, 0.0),
+                                 plant_ ? std::optional<std::size_t>(input_count_) : std::nullopt);
+  safe_command_.resize(input_count_, 0.0);
+  if (params.has("command_limit")) {
+    command_limit_ = params.numbers("command_limit",
+                                    plant_ ? std::optional<std::size_t>(input_count_) : std::nullopt);
+    command_limit_.resize(input_count_, 0.0);
+    for (std::size_t i = 0; i < command_limit_.size(); ++i) {
+      if (!(command_limit_[i] > 0.0)) {
+        params.fail("command_limit", "every limit must be > 0, got " +
+                                         number_text(command_limit_[i]) + " for " +
+                                         plant_inputs[i].name);
+      }
+    }
+    for (std::size_t i = 0; i < safe_command_.size() && i < command_limit_.size(); ++i) {
+      if (std::abs(safe_command_[i]) > command_limit_[i]) {
+        params.fail("safe_command", "safe value " + number_text(safe_command_[i]) + " for " +
+                                        plant_inputs[i].name + " exceeds command_limit " +
+                                        number_text(command_limit_[i]));
+      }
+    }
+  } else {
+    params.numbers("command_limit", std::vector<double>{});  // record the optional key as read
+  }
+  substeps_ = params.integer("substeps", 1);
+  if (substeps_ < 1 || substeps_ > kMaxSubsteps) {
+    params.fail("substeps", "must be within 1 ... 100000, got " + std::to_string(substeps_));
+    substeps_ = 1;
+  }
+
+  // --- ports and buffers ------------------------------------------------------------------
+  // Declared even when something above failed, so that the pipeline reports the real
+  // problem and not a missing port on top of it.
+  ctx.declare_input(command_, "command", plant_inputs, true);
+  if (plant_) {
+    ctx.declare_output(truth_, "truth", plant_outputs);
+    ctx.declare_output(plant_state_, "plant_state", plant_->state_elements());
+  }
+  if (sensors_status) {
+    Elements channels;
+    for (const auto& slot : sensors_) {
+      const Elements& c = slot.model->channels();
+      channels.insert(channels.end(), c.begin(), c.end());
+    }
+    ctx.declare_output(signals_, "signals", channels);
+    ctx.declare_output(counts_, "counts", with_unit(channels, std::string(kDimensionless)));
+  }
+  truth_buffer_.assign(plant_outputs.size(), 0.0);
+  clean_signals_.assign(channel_count_, 0.0);
+  held_command_.assign(input_count_, 0.0);
+
+  if (!params.ok()) return Status::error("invalid parameters");
+  if (!plant_) {
+    return Status::error("plant model '" + plant_name_ + "' is not available (see above)");
+  }
+  return sensors_status;
+}
+
+Status SimBoard::configure_sensors(ConfigureContext& ctx, Params& params) {
+  const std::vector<std::string> names = params.texts("sensors", {});
+  std::vector<ModelPtr<MeasurementModel>> models = ctx.measurement_models("sensors");
+  if (!params.has("sensors")) return Status::error("no sensors");  // reported by the context
+  if (names.empty()) {
+    params.fail("sensors", "list at least one measurement model from `models:`");
+    return Status::error("no sensors");
+  }
+  // A model that could not be made was reported and left out of the list.
+  if (models.size() != names.size()) {
+    return Status::error("a sensor model is not available (see above)");
+  }
+  if (!plant_) return Status::error("no plant to check the sensors against");
+  std::size_t largest_state = 0;
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    SensorSlot slot;
+    slot.name = names[i];
+    slot.model = std::move(models[i]);
+    sensors_.push_back(std::move(slot));
+  }
+
+  // Every state element a sensor needs must be a plant output, by name and unit.
+  const Elements& outputs = plant_->outputs();
+  std::set<std::string> channel_names;
+  bool ok = true;
+  channel_count_ = 0;
+  for (auto& slot : sensors_) {
+    for (const auto& need : slot.model->state_elements()) {
+      const auto found = std::find_if(outputs.begin(), outputs.end(),
+                                      [&](const Element& e) { return e.name == need.name; });
+      if (found == outputs.end()) {
+        params.fail("sensors", "sensor model '" + slot.name + "' needs state element '" +
+                                   need.name + "' [" + need.unit + "], which plant '" +
+                                   plant_name_ + "' does not output (its outputs: " +
+                                   name_list(outputs) + ")");
+        ok = false;
+        continue;
+      }
+      if (!units_compatible(found->unit, need.unit)) {
+        params.fail("sensors", "sensor model '" + slot.name + "' needs '" + need.name + "' in [" +
+                                   need.unit + "], plant '" + plant_name_ + "' outputs it in [" +
+                                   found->unit + "]");
+        ok = false;
+      }
+      slot.truth_index.push_back(static_cast<std::size_t>(found - outputs.begin()));
+    }
+    largest_state = std::max(largest_state, slot.model->state_elements().size());
+    slot.first_channel = channel_count_;
+    slot.channel_count = slot.model->channels().size();
+    channel_count_ += slot.channel_count;
+    for (const auto& channel : slot.model->channels()) {
+      if (!channel_names.insert(channel.name).second) {
+        params.fail("sensors", "channel '" + channel.name + "' of sensor model '" + slot.name +
+                                   "' is also produced by an earlier sensor; channel names must "
+                                   "be unique on the board");
+        ok = false;
+      }
+    }
+  }
+  if (channel_count_ == 0) {
+    params.fail("sensors", "the sensor models produce no channels");
+    ok = false;
+  }
+  sensor_state_.assign(largest_state, 0.0);
+  return ok ? Status::ok() : Status::error("sensor models do not fit the plant");
+}
+
+Status SimBoard::activate() {
+  plant_->reset();
+  rng_.seed(seed_);
+  has_spare_gaussian_ = false;
+  spare_gaussian_ = 0.0;
+  safe_.store(false, std::memory_order_relaxed);
+  for (auto& u : held_command_) u = 0.0;
+  // Outputs are valid before the first cycle: the noise-free sample of the initial state.
+  if (sample(0, false) != StepStatus::ok) return Status::error(fault_reason());
+  saturations_.store(0, std::memory_order_relaxed);
+  command_clamps_.store(0, std::memory_order_relaxed);
+  return Status::ok();
+}
+
+StepStatus SimBoard::step(const Tick& tick) noexcept { return sample(tick.time_ns, true); }
+
+StepStatus SimBoard::sample(std::int64_t time_ns, bool with_noise) noexcept {
+  plant_->output(truth_buffer_.data());
+  for (std::size_t i = 0; i < truth_buffer_.size(); ++i) {
+    if (!std::isfinite(truth_buffer_[i])) return fault("non-finite plant output");
+    truth_[i] = truth_buffer_[i];
+  }
+  plant_->state(plant_state_.data());
+
+  for (const auto& slot : sensors_) {
+    for (std::size_t j = 0; j < slot.truth_index.size(); ++j)
+      sensor_state_[j] = truth_buffer_[slot.truth_index[j]];
+    slot.model->evaluate(sensor_state_.data(), clean_signals_.data() + slot.first_channel);
+  }
+
+  // Mains pick-up is common to every channel (the same 60 Hz field couples into all wires,
+  // spec §2.2). Reduce the cycle count before taking the sine: exact phase on long runs.
+  double mains_v = 0.0;
+  if (with_noise && mains_amplitude_v_ > 0.0) {
+    const double cycles = mains_frequency_hz_ * static_cast<double>(time_ns) * 1e-9;
+    const double fraction = cycles - std::floor(cycles);
+    mains_v = mains_amplitude_v_ * std::sin(2.0 * std::numbers::pi * fraction + mains_phase_rad_);
+  }
+
+  std::uint64_t saturated = 0;
+  for (std::size_t c = 0; c < channel_count_; ++c) {
+    double volts = clean_signals_[c] + channel_offset_v_[c] + mains_v;
+    if (with_noise && noise_std_v_ > 0.0) volts += noise_std_v_ * gaussian();
+    if (!std::isfinite(volts)) return fault("non-finite simulated signal");
+    if (lsb_v_ > 0.0) {
+      // Mid-tread quantizer, then the converter's code range (clip and count).
+      double code = std::floor(volts / lsb_v_ + 0.5);
+      if (code > count_max_) {
+        code = count_max_;
+        ++saturated;
+      } else if (code < count_min_) {
+        code = count_min_;
+        ++saturated;
+      }
+      counts_[c] = code;
+      signals_[c] = code * lsb_v_;
+    } else {
+      // No converter modelled: counts carry the volts unchanged (an LSB of 1 V).
+      counts_[c] = volts;
+      signals_[c] = volts;
+    }
+  }
+  if (saturated > 0) saturations_.fetch_add(saturated, std::memory_order_relaxed);
+  return StepStatus::ok;
+}
+
+double SimBoard::gaussian() noexcept {
+  if (has_spare_gaussian_) {
+    has_spare_gaussian_ = false;
+    return spare_gaussian_;
+  }
+  // 53-bit uniforms; u1 in (0, 1] so the logarithm is finite.
+  constexpr double kScale = 1.0 / 9007199254740992.0;  // 2^-53
+  const double u1 = static_cast<double>((rng_() >> 11) + 1) * kScale;
+  const double u2 = static_cast<double>(rng_() >> 11) * kScale;
+  const double radius = std::sqrt(-2.0 * std::log(u1));
+  const double angle = 2.0 * std::numbers::pi * u2;
+  spare_gaussian_ = radius * std::sin(angle);
+  has_spare_gaussian_ = true;
+  return radius * std::cos(angle);
+}
+
+StepStatus SimBoard::write(const Tick& tick) noexcept {
+  if (safe_.load(std::memory_order_relaxed)) {
+    advance_plant(tick.dt_s, safe_command_.data());
+    return StepStatus::ok;
+  }
+  for (std::size_t i = 0; i < input_count_; ++i) {
+    if (!std::isfinite(command_[i])) {
+      // The DAC goes to its safe values; the plant keeps moving under them.
+      drive_safe();
+      advance_plant(tick.dt_s, safe_command_.data());
+      return fault("non-finite command");
+    }
+  }
+  std::uint64_t clamped = 0;
+  for (std::size_t i = 0; i < input_count_; ++i) {
+    double u = command_[i];
+    if (!command_limit_.empty() && std::abs(u) > command_limit_[i]) {
+      u = std::clamp(u, -command_limit_[i], command_limit_[i]);
+      ++clamped;
+    }
+    held_command_[i] = u;
+  }
+  if (clamped > 0) command_clamps_.fetch_add(clamped, std::memory_order_relaxed);
+  advance_plant(tick.dt_s, held_command_.data());
+  return StepStatus::ok;
+}
+
+void SimBoard::advance_plant(double dt_s, const double* u) noexcept {
+  const double sub_dt_s = dt_s / static_cast<double>(substeps_);
+  for (std::int64_t s = 0; s < substeps_; ++s) plant_->advance(sub_dt_s, u);
+}
+
+void SimBoard::drive_safe() noexcept { safe_.store(true, std::memory_order_relaxed); }
+
+void SimBoard::describe(Json& out) const {
+  out["plant"] = plant_name_;
+  Json plant = Json::object();
+  if (plant_) plant_->describe(plant);
+  out["plant_model"] = std::move(plant);
+  Json sensors = Json::array();
+  for (const auto& slot : sensors_) {
+    Json s = Json::object();
+    s["name"] = slot.name;
+    s["first_channel"] = static_cast<int>(slot.first_channel);
+    s["channels"] = static_cast<int>(slot.channel_count);
+    Json model = Json::object();
+    slot.model->describe(model);
+    s["model"] = std::move(model);
+    sensors.push(std::move(s));
+  }
+  out["sensors"] = std::move(sensors);
+  out["channels"] = static_cast<int>(channel_count_);
+
+  out["adc_bits"] = static_cast<double>(adc_bits_);
+  out["adc_range_v"] = adc_range_v_;
+  const double quantization_std_v = lsb_v_ / std::sqrt(12.0);
+  const double mains_rms_v = mains_amplitude_v_ / std::numbers::sqrt2;
+  out["lsb_v"] = lsb_v_;
+  out["count_min"] = count_min_;
+  out["count_max"] = count_max_;
+  out["quantization_noise_std_v"] = quantization_std_v;
+  out["white_noise_std_v"] = noise_std_v_;
+  out["mains_rms_v"] = mains_rms_v;
+  out["mains_frequency_hz"] = mains_frequency_hz_;
+  // Independent contributions add in power (mains counted as its rms).
+  out["total_noise_std_v"] = std::sqrt(noise_std_v_ * noise_std_v_ +
+                                       quantization_std_v * quantization_std_v +
+                                       mains_rms_v * mains_rms_v);
+  out["channel_offset_v"] = channel_offset_v_;
+  out["seed"] = static_cast<double>(seed_);
+  out["substeps"] = static_cast<double>(substeps_);
+  out["safe_command"] = safe_command_;
+  if (!command_limit_.empty()) out["command_limit"] = command_limit_;
+  out["adc_saturations"] = static_cast<double>(saturation_count());
+  out["command_clamps"] = static_cast<double>(command_clamp_count());
+  out["safe"] = safe();
+}
+
+namespace {
+
+constexpr ParamDoc kParams[] = {
+    {"plant", "text", nullptr, "name of a plant model in `models:` (e.g. plant.planar_stage)"},
+    {"sensors", "text or list<text>", nullptr,
+     "measurement-model names in `models:`; channels are concatenated in this order; their "
+     "state elements must be plant outputs"},
+    {"noise_std_v", "number", "1e-3", "white Gaussian noise std per channel [V] (thesis: 1 mV)"},
+    {"adc_bits", "integer", "16", "converter resolution; 0 = no quantization or clipping"},
+    {"adc_range_v", "number", "10", "converter input range +-adc_range_v [V]"},
+    {"mains_amplitude_v", "number", "0", "mains interference amplitude on every channel [V]"},
+    {"mains_frequency_hz", "number", "60", "mains interference frequency [Hz]"},
+    {"mains_phase_rad", "number", "0", "mains interference phase at t = 0 [rad]"},
+    {"channel_offset_v", "list<number>", "0 per channel", "offset added per channel [V]"},
+    {"seed", "integer", "1", "noise generator seed (mt19937_64); same seed, same signals"},
+    {"safe_command", "list<number>", "0 per plant input",
+     "command held after a fault or drive_safe() [plant input units]"},
+    {"command_limit", "list<number>", "none", "per plant input |u| clamp [plant input units]"},
+    {"substeps", "integer", "1", "plant integration steps per cycle"},
+};
+
+constexpr PortDoc kPorts[] = {
+    {"command", "in", "DAC command, exactly the plant's inputs (e.g. fx N, fy N, tz N*m)"},
+    {"signals", "out", "ADC channels [V] after offset, mains, noise and quantization"},
+    {"counts", "out", "raw signed ADC counts per channel [1]"},
+    {"truth", "out", "plant outputs (true configuration), e.g. x m, y m, theta_z rad"},
+    {"plant_state", "out", "full plant state, e.g. x, y, theta_z, vx, vy, omega_z"},
+};
+
+}  // namespace
+
+}  // namespace lode::plugins
+
+LODE_PLUGIN(lode::plugins::SimBoard, "io.sim", lode::PluginKind::io, "0.1.0",
+            "Simulated ADC/DAC board: plant + measurement models + noise, mains, offsets, ADC",
+            lode::plugins::kParams, lode::plugins::kPorts)

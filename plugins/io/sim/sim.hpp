@@ -1,0 +1,125 @@
+// io.sim: the simulated ADC/DAC board (DESIGN.md §2, §8; spec seed-000 §2.2, §6, §9 item 2).
+//
+// A plant model moved by the DAC commands, measurement models that turn the plant's true
+// configuration into sensor volts, and the imperfections of a real acquisition chain:
+// white Gaussian noise, mains interference, per-channel offsets and an ADC that quantizes
+// and saturates.
+//
+// @system
+// name: io.sim
+// input_ports:
+//   command: [plant inputs, e.g. fx N, fy N, tz N*m]   # write phase, held for one period (ZOH)
+// output_ports:                                         # read phase, start of the cycle
+//   signals:     [sensor channels, V]   # after offset, mains, noise and quantization
+//   counts:      [sensor channels, 1]   # raw signed ADC counts (integers stored as doubles)
+//   truth:       [plant outputs, e.g. x m, y m, theta_z rad]
+//   plant_state: [plant state elements, e.g. x, y, theta_z, vx, vy, omega_z]
+// @endsystem
+//
+// Cycle k: step() (read phase) samples the plant as it is at the start of the cycle; write()
+// (write phase) takes the command computed in cycle k and advances the plant by one period
+// with it held constant. The sample of cycle k+1 is therefore the first to show the command
+// of cycle k, as on a real board.
+//
+// Threads: configure()/activate()/describe() on the loader thread; step()/write()/drive_safe()
+// on the RT thread (no allocation: every buffer is sized in configure()). drive_safe() may also
+// be called by the pipeline from the non-RT thread after the RT thread has stopped.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "lode/block.hpp"
+
+namespace lode::plugins {
+
+class SimBoard final : public Block {
+ public:
+  Status configure(ConfigureContext& ctx) override;
+  Status activate() override;
+  StepStatus step(const Tick& tick) noexcept override;
+  StepStatus write(const Tick& tick) noexcept override;
+  void drive_safe() noexcept override;
+  void describe(Json& out) const override;
+
+  /// ADC saturations (samples clipped to the converter's range) since activate().
+  [[nodiscard]] std::uint64_t saturation_count() const noexcept {
+    return saturations_.load(std::memory_order_relaxed);
+  }
+  /// Command elements clamped to command_limit since activate().
+  [[nodiscard]] std::uint64_t command_clamp_count() const noexcept {
+    return command_clamps_.load(std::memory_order_relaxed);
+  }
+  [[nodiscard]] bool safe() const noexcept { return safe_.load(std::memory_order_relaxed); }
+
+ private:
+  /// One measurement model and where its inputs and outputs live.
+  struct SensorSlot {
+    std::string name;                        ///< name in `models:`
+    ModelPtr<MeasurementModel> model;
+    std::vector<std::size_t> truth_index;    ///< per model state element: plant output index
+    std::size_t first_channel = 0;
+    std::size_t channel_count = 0;
+  };
+
+  Status configure_sensors(ConfigureContext& ctx, Params& params);
+  /// Fill every output from the plant's current state; noise only when `with_noise`.
+  StepStatus sample(std::int64_t time_ns, bool with_noise) noexcept;
+  /// Standard normal deviate from the board's own generator (Box-Muller, deterministic on
+  /// every standard library, unlike std::normal_distribution).
+  double gaussian() noexcept;
+  void advance_plant(double dt_s, const double* u) noexcept;
+
+  // Models
+  ModelPtr<PlantModel> plant_;
+  std::string plant_name_;
+  std::vector<SensorSlot> sensors_;
+
+  // Sizes
+  std::size_t channel_count_ = 0;
+  std::size_t input_count_ = 0;
+
+  // Parameters
+  double noise_std_v_ = 1e-3;
+  std::int64_t adc_bits_ = 16;
+  double adc_range_v_ = 10.0;
+  double lsb_v_ = 0.0;   ///< 2 range / 2^bits; 0 without quantization
+  double count_min_ = 0.0;
+  double count_max_ = 0.0;
+  double mains_amplitude_v_ = 0.0;
+  double mains_frequency_hz_ = 60.0;
+  double mains_phase_rad_ = 0.0;
+  std::vector<double> channel_offset_v_;
+  std::uint64_t seed_ = 1;
+  std::vector<double> safe_command_;
+  std::vector<double> command_limit_;  ///< empty: no clamp
+  std::int64_t substeps_ = 1;
+
+  // Ports
+  InputPort command_;
+  OutputPort signals_;
+  OutputPort counts_;
+  OutputPort truth_;
+  OutputPort plant_state_;
+
+  // Cycle scratch, sized in configure()
+  std::vector<double> truth_buffer_;
+  std::vector<double> sensor_state_;
+  std::vector<double> clean_signals_;
+  std::vector<double> held_command_;
+
+  // Noise generator
+  std::mt19937_64 rng_;
+  bool has_spare_gaussian_ = false;
+  double spare_gaussian_ = 0.0;
+
+  // Health, readable from describe() while running
+  std::atomic<bool> safe_{false};
+  std::atomic<std::uint64_t> saturations_{0};
+  std::atomic<std::uint64_t> command_clamps_{0};
+};
+
+}  // namespace lode::plugins

@@ -1,0 +1,137 @@
+#include "planar_stage.hpp"
+
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "lode/plugin.hpp"
+
+namespace lode::plugins {
+
+namespace {
+
+std::string text_of(double value) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%g", value);
+  return buffer;
+}
+
+std::array<double, 3> to_array3(const std::vector<double>& values) {
+  std::array<double, 3> out{};
+  for (std::size_t i = 0; i < out.size() && i < values.size(); ++i) out[i] = values[i];
+  return out;
+}
+
+}  // namespace
+
+PlanarStage::PlanarStage()
+    : inputs_{{"fx", "N"}, {"fy", "N"}, {"tz", "N*m"}},
+      outputs_{{"x", "m"}, {"y", "m"}, {"theta_z", "rad"}},
+      state_elements_{{"x", "m"},     {"y", "m"},     {"theta_z", "rad"},
+                      {"vx", "m/s"}, {"vy", "m/s"}, {"omega_z", "rad/s"}} {
+  apply(PlanarStageConfig{});
+}
+
+Status PlanarStage::configure(Params& params) {
+  const PlanarStageConfig defaults;
+  PlanarStageConfig c;
+  c.mass_kg = params.number("mass_kg", defaults.mass_kg);
+  c.inertia_kg_m2 = params.number("inertia_kg_m2", defaults.inertia_kg_m2);
+  c.initial = to_array3(params.numbers("initial", {0.0, 0.0, 0.0}, 3));
+  c.initial_velocity = to_array3(params.numbers("initial_velocity", {0.0, 0.0, 0.0}, 3));
+  c.yaw_coupling_m = params.number("yaw_coupling_m", defaults.yaw_coupling_m);
+  c.disturbance_torque_n_m =
+      params.number("disturbance_torque_n_m", defaults.disturbance_torque_n_m);
+
+  params.check(c.mass_kg > 0.0, "mass_kg", "must be > 0 kg, got " + text_of(c.mass_kg));
+  params.check(c.inertia_kg_m2 > 0.0, "inertia_kg_m2",
+               "must be > 0 kg*m^2, got " + text_of(c.inertia_kg_m2));
+  if (!params.ok()) return Status::error("invalid parameters");
+  apply(c);
+  return Status::ok();
+}
+
+void PlanarStage::apply(const PlanarStageConfig& config) {
+  config_ = config;
+  reset();
+}
+
+void PlanarStage::reset() noexcept {
+  x_[kX] = config_.initial[0];
+  x_[kY] = config_.initial[1];
+  x_[kThetaZ] = config_.initial[2];
+  x_[kVx] = config_.initial_velocity[0];
+  x_[kVy] = config_.initial_velocity[1];
+  x_[kOmegaZ] = config_.initial_velocity[2];
+}
+
+void PlanarStage::advance(double dt_s, const double* u) noexcept {
+  // Accelerations are constant over dt because the inputs are held (ZOH), so the double
+  // integrator is integrated exactly: p += v dt + a dt^2/2, v += a dt (eq. 4.44-4.47).
+  const double ax = u[kFx] / config_.mass_kg;
+  const double ay = u[kFy] / config_.mass_kg;
+  // Yaw moment: commanded torque, the X actuator's lever arm (force asymmetry, spec §5.1)
+  // and the constant cable torque.
+  const double alpha =
+      (u[kTz] + config_.yaw_coupling_m * u[kFx] + config_.disturbance_torque_n_m) /
+      config_.inertia_kg_m2;
+  const double half_dt2 = 0.5 * dt_s * dt_s;
+  x_[kX] += x_[kVx] * dt_s + ax * half_dt2;
+  x_[kY] += x_[kVy] * dt_s + ay * half_dt2;
+  x_[kThetaZ] += x_[kOmegaZ] * dt_s + alpha * half_dt2;
+  x_[kVx] += ax * dt_s;
+  x_[kVy] += ay * dt_s;
+  x_[kOmegaZ] += alpha * dt_s;
+}
+
+void PlanarStage::output(double* y) const noexcept {
+  y[0] = x_[kX];
+  y[1] = x_[kY];
+  y[2] = x_[kThetaZ];
+}
+
+void PlanarStage::state(double* x) const noexcept {
+  for (std::size_t i = 0; i < kStateSize; ++i) x[i] = x_[i];
+}
+
+void PlanarStage::describe(Json& out) const {
+  out["mass_kg"] = config_.mass_kg;
+  out["inertia_kg_m2"] = config_.inertia_kg_m2;
+  out["yaw_coupling_m"] = config_.yaw_coupling_m;
+  out["disturbance_torque_n_m"] = config_.disturbance_torque_n_m;
+  out["initial"] = std::vector<double>(config_.initial.begin(), config_.initial.end());
+  out["initial_velocity"] =
+      std::vector<double>(config_.initial_velocity.begin(), config_.initial_velocity.end());
+  // The ZOH-discretised double integrator per axis (the DSP's view of the plant):
+  // y(z)/u(z) = T^2 (z + 1) / (2 m (z - 1)^2); its gain factor 1/m and 1/Iz.
+  out["x_y_gain_1_per_kg"] = 1.0 / config_.mass_kg;
+  out["theta_gain_1_per_kg_m2"] = 1.0 / config_.inertia_kg_m2;
+  out["integration"] = "exact zero-order hold";
+}
+
+namespace {
+
+constexpr ParamDoc kParams[] = {
+    {"mass_kg", "number", "6.20", "platen mass (thesis eq. 4.44), > 0"},
+    {"inertia_kg_m2", "number", "0.054", "yaw inertia Iz (thesis eq. 4.46), > 0"},
+    {"initial", "list<number>[3]", "[0, 0, 0]", "initial x [m], y [m], theta_z [rad]"},
+    {"initial_velocity", "list<number>[3]", "[0, 0, 0]",
+     "initial vx [m/s], vy [m/s], omega_z [rad/s]"},
+    {"yaw_coupling_m", "number", "0",
+     "lever arm by which fx also produces the yaw moment fx*lever (force asymmetry, spec §5.1)"},
+    {"disturbance_torque_n_m", "number", "0", "constant yaw disturbance torque (cables)"},
+};
+
+constexpr PortDoc kPorts[] = {
+    {"fx, fy, tz", "in", "actuator force [N], [N] and yaw torque [N*m], held over a cycle"},
+    {"x, y, theta_z", "out", "platen pose [m], [m], [rad]"},
+    {"state: x, y, theta_z, vx, vy, omega_z", "out", "full state: pose and velocities [m, m, rad, m/s, m/s, rad/s]"},
+};
+
+}  // namespace
+
+}  // namespace lode::plugins
+
+LODE_PLUGIN(lode::plugins::PlanarStage, "plant.planar_stage", lode::PluginKind::plant, "0.1.0",
+            "Planar 3-DOF rigid platen on air bearings, exact ZOH integration (Kawato eq. 4.44-4.47)",
+            lode::plugins::kParams, lode::plugins::kPorts)

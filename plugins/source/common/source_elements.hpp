@@ -1,0 +1,103 @@
+// Shared by the reference generators source.step, source.ramp, source.sine, source.zigzag:
+// reading the common parameters (names, units, offset) and handling scheduled time.
+//
+// Header-only and not a plugin (no CMakeLists.txt here): each source includes it with
+// `#include "../common/source_elements.hpp"`. Everything here runs in configure(), except
+// elapsed_s(), which is RT-safe.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <optional>
+#include <set>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "lode/params.hpp"
+#include "lode/port.hpp"
+
+namespace lode::plugins::source {
+
+/// The output elements of a source and its per-element resting value.
+struct SourceElements {
+  Elements elements;           ///< from `names` and `units`
+  std::vector<double> offset;  ///< from `offset`, default 0 per element
+
+  [[nodiscard]] std::size_t size() const { return elements.size(); }
+};
+
+inline std::string number_text(double value) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%g", value);
+  return buffer;
+}
+
+/// Reads `names` (required, unique, non-empty), `units` (required, same length) and
+/// `offset` (per element, default 0). Problems are recorded in `params` at their key.
+inline SourceElements read_source_elements(Params& params) {
+  SourceElements out;
+  const std::vector<std::string> names = params.texts("names", {});
+  const std::vector<std::string> units = params.texts("units", {});
+  if (!params.has("names") || names.empty()) {
+    params.fail("names", "a non-empty list of element names is required, e.g. [x, y, theta_z]");
+  }
+  std::set<std::string> seen;
+  for (const auto& name : names) {
+    if (name.empty()) params.fail("names", "element names must not be empty");
+    if (!seen.insert(name).second) params.fail("names", "duplicate element name '" + name + "'");
+  }
+  if (!params.has("units")) {
+    params.fail("units", "a list of SI units, one per name, is required, e.g. [m, m, rad]");
+  } else if (units.size() != names.size()) {
+    params.fail("units", "expected " + std::to_string(names.size()) + " units (one per name), got " +
+                             std::to_string(units.size()));
+  }
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    out.elements.push_back({names[i], i < units.size() ? units[i] : std::string("1")});
+  }
+  out.offset = params.numbers("offset", std::vector<double>(names.size(), 0.0), names.size());
+  out.offset.resize(names.size(), 0.0);
+  return out;
+}
+
+/// A per-element list under `key` with exactly `n` entries. Without a fallback the key is
+/// required; with one, an absent key gives n copies of it.
+inline std::vector<double> read_per_element(Params& params, std::string_view key, std::size_t n,
+                                            std::optional<double> fallback = std::nullopt) {
+  std::vector<double> values = fallback ? params.numbers(key, std::vector<double>(n, *fallback), n)
+                                        : params.numbers(key, n);
+  values.resize(n, 0.0);
+  return values;
+}
+
+/// Largest time a parameter may name: keeps every time in int64 nanoseconds with margin.
+inline constexpr double kMaxTimeS = 1.0e9;
+
+/// Seconds (a validated parameter) to integer nanoseconds, so that comparisons against the
+/// scheduled tick time are exact: a step at time_s = 0.1 happens on the cycle whose
+/// scheduled time is >= 100000000 ns, never one cycle early or late because of rounding.
+inline std::int64_t seconds_to_ns(double seconds) {
+  return static_cast<std::int64_t>(std::llround(seconds * 1e9));
+}
+
+/// Reads a time parameter in seconds that must lie in [0, kMaxTimeS]; returns nanoseconds.
+/// Without a fallback the key is required.
+inline std::int64_t read_time_ns(Params& params, std::string_view key,
+                                 std::optional<double> fallback_s = std::nullopt) {
+  const double seconds = fallback_s ? params.number(key, *fallback_s) : params.number(key);
+  if (!(seconds >= 0.0 && seconds <= kMaxTimeS)) {
+    params.fail(key, "must be within [0, 1e9] s, got " + number_text(seconds));
+    return 0;
+  }
+  return seconds_to_ns(seconds);
+}
+
+/// Seconds elapsed since `start_ns` at scheduled time `time_ns` (negative before the start).
+/// The difference is taken in integers first, so long runs lose no resolution. RT-safe.
+inline double elapsed_s(std::int64_t time_ns, std::int64_t start_ns) noexcept {
+  return static_cast<double>(time_ns - start_ns) * 1e-9;
+}
+
+}  // namespace lode::plugins::source

@@ -1,0 +1,93 @@
+#include "sine.hpp"
+
+#include <cmath>
+#include <numbers>
+
+#include "../common/source_elements.hpp"
+#include "lode/plugin.hpp"
+
+namespace lode::plugins {
+
+Status SineSource::configure(ConfigureContext& ctx) {
+  Params& params = ctx.params();
+  source::SourceElements elements = source::read_source_elements(params);
+  size_ = elements.size();
+  offset_ = elements.offset;
+  amplitude_ = source::read_per_element(params, "amplitude", size_);
+  frequency_hz_ = source::read_per_element(params, "frequency_hz", size_);
+  phase_rad_ = source::read_per_element(params, "phase_rad", size_, 0.0);
+  start_ns_ = source::read_time_ns(params, "start_s", 0.0);
+  for (std::size_t i = 0; i < frequency_hz_.size(); ++i) {
+    if (frequency_hz_[i] < 0.0) {
+      params.fail("frequency_hz", "must be >= 0 Hz, got " + source::number_text(frequency_hz_[i]) +
+                                      " for element " + std::to_string(i));
+    }
+  }
+  // A reference above Nyquist aliases; it is almost certainly a configuration mistake.
+  const double nyquist_hz = 0.5 * ctx.rate_hz();
+  for (std::size_t i = 0; i < frequency_hz_.size(); ++i) {
+    if (frequency_hz_[i] > nyquist_hz) {
+      params.fail("frequency_hz", "must not exceed the Nyquist frequency " +
+                                      source::number_text(nyquist_hz) + " Hz of this " +
+                                      source::number_text(ctx.rate_hz()) + " Hz block, got " +
+                                      source::number_text(frequency_hz_[i]));
+    }
+  }
+
+  ctx.declare_output(out_, "out", elements.elements);
+  return params.ok() ? Status::ok() : Status::error("invalid parameters");
+}
+
+Status SineSource::activate() {
+  for (std::size_t i = 0; i < size_; ++i) out_[i] = offset_[i];
+  return Status::ok();
+}
+
+StepStatus SineSource::step(const Tick& tick) noexcept {
+  if (tick.time_ns < start_ns_) {
+    for (std::size_t i = 0; i < size_; ++i) out_[i] = offset_[i];
+    return StepStatus::ok;
+  }
+  const double tau_s = source::elapsed_s(tick.time_ns, start_ns_);
+  for (std::size_t i = 0; i < size_; ++i) {
+    // Reduce the cycle count to [0, 1) before multiplying by 2 pi: the phase stays accurate
+    // after hours of running (sin of a huge argument loses digits).
+    const double cycles = frequency_hz_[i] * tau_s;
+    const double fraction = cycles - std::floor(cycles);
+    out_[i] = offset_[i] +
+              amplitude_[i] * std::sin(2.0 * std::numbers::pi * fraction + phase_rad_[i]);
+  }
+  return StepStatus::ok;
+}
+
+void SineSource::describe(Json& out) const {
+  out["elements"] = static_cast<int>(size_);
+  out["offset"] = offset_;
+  out["amplitude"] = amplitude_;
+  out["frequency_hz"] = frequency_hz_;
+  out["phase_rad"] = phase_rad_;
+  out["start_s"] = static_cast<double>(start_ns_) * 1e-9;
+}
+
+namespace {
+
+constexpr ParamDoc kParams[] = {
+    {"names", "list<text>", nullptr, "output element names, e.g. [x, y]"},
+    {"units", "list<text>", nullptr, "SI unit per element, e.g. [m, m]"},
+    {"offset", "list<number>", "0 per element", "centre value [element unit]"},
+    {"amplitude", "list<number>", nullptr, "peak amplitude per element [element unit]"},
+    {"frequency_hz", "list<number>", nullptr, "frequency per element [Hz], 0 ... rate/2"},
+    {"phase_rad", "list<number>", "0 per element", "phase at start_s per element [rad]"},
+    {"start_s", "number", "0", "scheduled start time [s], >= 0; output = offset before"},
+};
+
+constexpr PortDoc kPorts[] = {
+    {"out", "out", "sinusoidal reference, elements from names/units"},
+};
+
+}  // namespace
+
+}  // namespace lode::plugins
+
+LODE_PLUGIN(lode::plugins::SineSource, "source.sine", lode::PluginKind::block, "0.1.0",
+            "Sinusoidal reference per element", lode::plugins::kParams, lode::plugins::kPorts)

@@ -1,0 +1,87 @@
+#include "step.hpp"
+
+#include <algorithm>
+#include <string>
+
+#include "../common/source_elements.hpp"
+#include "lode/plugin.hpp"
+
+namespace lode::plugins {
+
+Status StepSource::configure(ConfigureContext& ctx) {
+  Params& params = ctx.params();
+  source::SourceElements elements = source::read_source_elements(params);
+  size_ = elements.size();
+  offset_ = elements.offset;
+
+  const std::vector<Params> steps = params.items("steps");
+  for (std::size_t i = 0; i < steps.size(); ++i) {
+    Params step = steps[i];
+    const std::int64_t time_ns = source::read_time_ns(step, "time_s");
+    const std::vector<double> value = source::read_per_element(step, "value", size_);
+    if (!step_time_ns_.empty() && time_ns <= step_time_ns_.back()) {
+      step.fail("time_s", "steps must be sorted by strictly increasing time_s; " +
+                              source::number_text(static_cast<double>(time_ns) * 1e-9) +
+                              " s does not come after " +
+                              source::number_text(static_cast<double>(step_time_ns_.back()) * 1e-9) +
+                              " s");
+    }
+    step_time_ns_.push_back(time_ns);
+    step_values_.insert(step_values_.end(), value.begin(), value.end());
+  }
+
+  ctx.declare_output(out_, "out", elements.elements);
+  return params.ok() ? Status::ok() : Status::error("invalid parameters");
+}
+
+Status StepSource::activate() {
+  for (std::size_t i = 0; i < size_; ++i) out_[i] = offset_[i];
+  return Status::ok();
+}
+
+StepStatus StepSource::step(const Tick& tick) noexcept {
+  // Number of steps whose time has come; binary search, no state, so any tick order works.
+  const auto reached = static_cast<std::size_t>(
+      std::upper_bound(step_time_ns_.begin(), step_time_ns_.end(), tick.time_ns) -
+      step_time_ns_.begin());
+  const double* value = reached == 0 ? offset_.data() : &step_values_[(reached - 1) * size_];
+  for (std::size_t i = 0; i < size_; ++i) out_[i] = value[i];
+  return StepStatus::ok;
+}
+
+void StepSource::describe(Json& out) const {
+  out["elements"] = static_cast<int>(size_);
+  out["offset"] = offset_;
+  Json steps = Json::array();
+  for (std::size_t s = 0; s < step_time_ns_.size(); ++s) {
+    Json step = Json::object();
+    step["time_s"] = static_cast<double>(step_time_ns_[s]) * 1e-9;
+    step["value"] = std::vector<double>(step_values_.begin() + static_cast<std::ptrdiff_t>(s * size_),
+                                        step_values_.begin() + static_cast<std::ptrdiff_t>((s + 1) * size_));
+    steps.push(std::move(step));
+  }
+  out["steps"] = std::move(steps);
+}
+
+namespace {
+
+constexpr ParamDoc kParams[] = {
+    {"names", "list<text>", nullptr, "output element names, e.g. [x, y, theta_z]"},
+    {"units", "list<text>", nullptr, "SI unit per element, e.g. [m, m, rad]"},
+    {"offset", "list<number>", "0 per element", "output before the first step [element unit]"},
+    {"steps", "list<map>", nullptr,
+     "{time_s: scheduled time [s] >= 0, value: [absolute value per element]}, strictly "
+     "increasing time_s"},
+};
+
+constexpr PortDoc kPorts[] = {
+    {"out", "out", "piecewise-constant reference, elements from names/units"},
+};
+
+}  // namespace
+
+}  // namespace lode::plugins
+
+LODE_PLUGIN(lode::plugins::StepSource, "source.step", lode::PluginKind::block, "0.1.0",
+            "Piecewise-constant reference: absolute values at scheduled times",
+            lode::plugins::kParams, lode::plugins::kPorts)

@@ -1,0 +1,39 @@
+// source.step: piecewise-constant reference (the thesis's step commands: 10 um, 100 um, 1 mm,
+// 4 mm and 10 mm in Y; 100 urad, 1 mrad, 10 mrad in theta_z; spec seed-000 §7.2-7.3, §9 item 9).
+//
+// @system
+// name: source.step
+// output_ports:
+//   out: [names...] with [units...]   # the value of the last step whose time has come
+// @endsystem
+//
+// out(t) = offset                 for t <  steps[0].time_s
+//        = steps[i].value         for steps[i].time_s <= t < steps[i+1].time_s
+// with t the scheduled time of the cycle (tick.time_ns), so runs are deterministic.
+//
+// Threads: configure()/activate() on the loader thread, step() on the RT thread.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "lode/block.hpp"
+
+namespace lode::plugins {
+
+class StepSource final : public Block {
+ public:
+  Status configure(ConfigureContext& ctx) override;
+  Status activate() override;
+  StepStatus step(const Tick& tick) noexcept override;
+  void describe(Json& out) const override;
+
+ private:
+  OutputPort out_;
+  std::size_t size_ = 0;
+  std::vector<double> offset_;
+  std::vector<std::int64_t> step_time_ns_;  ///< strictly increasing
+  std::vector<double> step_values_;         ///< row-major: step x element
+};
+
+}  // namespace lode::plugins

@@ -1,0 +1,134 @@
+// source.step: exact values at chosen scheduled times, and located configuration errors.
+#include "step.hpp"
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "lode/testing/harness.hpp"
+
+namespace {
+
+using lode::testing::BlockHarness;
+
+// 1 kHz: the harness's tick k is scheduled at exactly k ms.
+constexpr double kRateHz = 1000.0;
+
+
+TEST(SourceStep, PiecewiseConstantAtExactTimes) {
+  BlockHarness h("source.step", R"(
+names: [x, theta_z]
+units: [m, rad]
+offset: [5e-6, -1e-3]
+steps:
+  - {time_s: 0.1, value: [1e-4, 0]}
+  - {time_s: 0.25, value: [2e-4, 1e-3]}
+  - {time_s: 1, value: [0, 0]})",
+                 kRateHz);
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  const auto& elements = h.output_elements("out");
+  ASSERT_EQ(elements.size(), 2u);
+  EXPECT_EQ(elements[0].name, "x");
+  EXPECT_EQ(elements[0].unit, "m");
+  EXPECT_EQ(elements[1].name, "theta_z");
+  EXPECT_EQ(elements[1].unit, "rad");
+  EXPECT_EQ(h.output("out")[0], 5e-6) << "activate() writes the offset";
+
+  struct Expect {
+    std::uint64_t cycle;  // = ms
+    double x, theta;
+  };
+  const Expect expected[] = {{0, 5e-6, -1e-3},   {99, 5e-6, -1e-3}, {100, 1e-4, 0.0},
+                             {249, 1e-4, 0.0},   {250, 2e-4, 1e-3}, {999, 2e-4, 1e-3},
+                             {1000, 0.0, 0.0},   {3000, 0.0, 0.0}};
+  h.step();  // cycle 0
+  for (const auto& e : expected) {
+    while (h.tick().cycle < e.cycle) h.step();
+    ASSERT_EQ(h.tick().time_ns, static_cast<std::int64_t>(e.cycle) * 1'000'000);
+    EXPECT_EQ(h.output("out")[0], e.x) << "t = " << e.cycle << " ms";
+    EXPECT_EQ(h.output("out")[1], e.theta) << "t = " << e.cycle << " ms";
+  }
+}
+
+TEST(SourceStep, StepAtTimeZeroAppliesOnTheFirstCycle) {
+  BlockHarness h("source.step", "names: [y]\nunits: [m]\nsteps: [{time_s: 0, value: [1e-5]}]\n",
+                 800.0);
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  h.step();
+  EXPECT_EQ(h.output("out")[0], 1e-5);
+}
+
+// At 800 Hz the cycles are 1.25 ms apart: a step at 0.1 s lands exactly on cycle 80 (the
+// thesis's "80th sample", spec §7.1), not one early or late through rounding.
+TEST(SourceStep, ThesisStepLandsOnCycle80At800Hz) {
+  BlockHarness h("source.step", "names: [x]\nunits: [m]\nsteps: [{time_s: 0.1, value: [1e-4]}]\n",
+                 800.0);
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  for (int k = 0; k < 80; ++k) {
+    h.step();
+    EXPECT_EQ(h.output("out")[0], 0.0) << "cycle " << h.tick().cycle;
+  }
+  h.step();
+  EXPECT_EQ(h.tick().cycle, 80u);
+  EXPECT_EQ(h.output("out")[0], 1e-4);
+}
+
+std::string configure_error(const std::string& params) {
+  BlockHarness h("source.step", params, kRateHz);
+  const lode::Status st = h.configure();
+  return st ? std::string("(configured)") : h.diagnostics();
+}
+
+TEST(SourceStep, UnsortedStepsAreALocatedError) {
+  const std::string d = configure_error(R"(
+names: [x]
+units: [m]
+steps:
+  - {time_s: 0.5, value: [1]}
+  - {time_s: 0.2, value: [2]})");
+  EXPECT_NE(d.find("blocks.dut.steps[1].time_s: steps must be sorted by strictly increasing "
+                   "time_s; 0.2 s does not come after 0.5 s"),
+            std::string::npos)
+      << d;
+}
+
+TEST(SourceStep, ShapeErrorsAreAllReported) {
+  const std::string d = configure_error(R"(
+names: [x, y]
+units: [m]
+offset: [1, 2, 3]
+steps:
+  - {time_s: -1, value: [1, 2]}
+  - {value: [1]})");
+  for (const char* expected : {"blocks.dut.units: expected 2 units (one per name), got 1",
+                               "blocks.dut.offset: expected 2 numbers, got 3",
+                               "blocks.dut.steps[0].time_s: must be within [0, 1e9] s, got -1",
+                               "blocks.dut.steps[1].time_s: missing required parameter",
+                               "blocks.dut.steps[1].value: expected 2 numbers, got 1"}) {
+    EXPECT_NE(d.find(expected), std::string::npos) << "missing: " << expected << "\n" << d;
+  }
+}
+
+TEST(SourceStep, NamesUnitsAndStepsAreRequired) {
+  const std::string d = configure_error("offset: [0]\n");
+  EXPECT_NE(d.find("blocks.dut.names:"), std::string::npos) << d;
+  EXPECT_NE(d.find("blocks.dut.units:"), std::string::npos) << d;
+  EXPECT_NE(d.find("blocks.dut.steps: missing required parameter"), std::string::npos) << d;
+  const std::string dup = configure_error("names: [x, x]\nunits: [m, m]\nsteps: [{time_s: 0, value: [1, 1]}]\n");
+  EXPECT_NE(dup.find("duplicate element name 'x'"), std::string::npos) << dup;
+}
+
+TEST(SourceStep, DescribeListsTheSteps) {
+  BlockHarness h("source.step", "names: [x]\nunits: [m]\nsteps: [{time_s: 0.5, value: [2]}]\n",
+                 kRateHz);
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  const lode::Json d = h.describe();
+  ASSERT_NE(d.find("steps"), nullptr);
+  ASSERT_EQ(d.find("steps")->elements().size(), 1u);
+  EXPECT_EQ(d.find("steps")->elements()[0].find("time_s")->as_number(), 0.5);
+}
+
+}  // namespace
