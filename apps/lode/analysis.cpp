@@ -26,7 +26,8 @@ double crossing_time(const std::vector<double>& t, const Series& y, std::size_t 
 }  // namespace
 
 std::vector<StepResponse> step_responses(const std::vector<double>& t, const Series& ref,
-                                         const Series& y, double settle_band) {
+                                         const Series& y, double settle_band,
+                                         const std::vector<double>& noise_floor) {
   std::vector<StepResponse> out;
   const std::size_t n = t.size();
   if (n < 3 || ref.width() == 0) return out;
@@ -60,7 +61,9 @@ std::vector<StepResponse> step_responses(const std::vector<double>& t, const Ser
       double peak = 0.0;
       for (std::size_t k = k0; k < k1; ++k) peak = std::max(peak, sign * (y.at(k, i) - after));
       s.overshoot_pct = 100.0 * peak / std::abs(span);
-      const double band = settle_band * std::abs(s.amplitude);
+      double band = settle_band * std::abs(s.amplitude);
+      if (i < noise_floor.size()) band = std::max(band, noise_floor[i]);
+      s.settling_band = band;
       std::size_t last_out = k0;
       for (std::size_t k = k0; k < k1; ++k)
         if (std::abs(y.at(k, i) - after) > band) last_out = k;

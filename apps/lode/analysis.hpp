@@ -28,13 +28,16 @@ struct StepResponse {
   double rise_time_s = 0.0;  ///< 10 % -> 90 % of the step, interpolated; NaN if never reached
   double overshoot_pct = 0.0;
   double settling_time_s = 0.0;  ///< last entry into the band around the final reference; NaN if never
+  double settling_band = 0.0;    ///< half-width of that band, in the axis unit
   double steady_state_error = 0.0;  ///< mean over the last 10 % of the window minus reference
   std::vector<double> peak_coupling;  ///< max |deviation| of every other axis in the window
 };
 
 /// Steps of `reference` (jumps held for at least two samples) and the response of `response`.
+/// The settling band is settle_band * |step|, widened per axis to `noise_floor[axis]` if given.
 std::vector<StepResponse> step_responses(const std::vector<double>& time_s, const Series& reference,
-                                         const Series& response, double settle_band);
+                                         const Series& response, double settle_band,
+                                         const std::vector<double>& noise_floor = {});
 
 struct AxisStats {
   double mean = 0.0;

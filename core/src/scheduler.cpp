@@ -76,6 +76,7 @@ bool Scheduler::cycle(const Tick& tick, RunResult& result) noexcept {
   for (auto* tap : taps_) tap->capture(tick.cycle, tick.time_ns);
   if (!clock_.simulated()) stats_.cycle_time.record(clock_.now_ns() - start);
   stats_.cycles.store(tick.cycle + 1, std::memory_order_relaxed);
+  stats_.executed.store(stats_.executed.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
   stats_.last_time_ns.store(tick.time_ns, std::memory_order_relaxed);
   if (r.status != StepStatus::ok) {
     result.faulted = true;
@@ -141,6 +142,7 @@ RunResult Scheduler::run_real(std::uint64_t cycles, const std::atomic<bool>& sto
     std::int64_t deadline = start;
     std::uint64_t k = 0;
     std::uint64_t overruns = 0;
+    bool overrun_stop = false;
     while ((cycles == 0 || k < cycles) && !stop.load(std::memory_order_relaxed)) {
       clock_.sleep_until(deadline);
       const std::int64_t woke = clock_.now_ns();
@@ -156,9 +158,8 @@ RunResult Scheduler::run_real(std::uint64_t cycles, const std::atomic<bool>& sto
         stats_.overruns.store(overruns, std::memory_order_relaxed);
         if (rts.overrun_policy == OverrunPolicy::stop ||
             (rts.max_overruns > 0 && overruns >= rts.max_overruns)) {
-          result.faulted = true;
-          result.fault = "scheduler: overrun limit reached (" + std::to_string(overruns) + ")";
           pipeline_.drive_safe();
+          overrun_stop = true;  // the message is built after the loop: no allocation here
           break;
         }
         if (rts.overrun_policy == OverrunPolicy::skip) {
@@ -169,6 +170,10 @@ RunResult Scheduler::run_real(std::uint64_t cycles, const std::atomic<bool>& sto
           stats_.missed_periods.fetch_add(static_cast<std::uint64_t>(missed), std::memory_order_relaxed);
         }
       }
+    }
+    if (overrun_stop) {
+      result.faulted = true;
+      result.fault = "scheduler: overrun limit reached (" + std::to_string(overruns) + " overruns)";
     }
     done.store(true, std::memory_order_release);
   });

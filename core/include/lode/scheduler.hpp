@@ -75,7 +75,8 @@ class SignalTap {
 };
 
 struct RunStats {
-  std::atomic<std::uint64_t> cycles{0};
+  std::atomic<std::uint64_t> cycles{0};          ///< cycle number reached (skipped periods included)
+  std::atomic<std::uint64_t> executed{0};        ///< cycles actually run
   std::atomic<std::uint64_t> overruns{0};       ///< cycles that ended after the next deadline
   std::atomic<std::uint64_t> missed_periods{0};  ///< periods skipped under overrun_policy skip
   std::atomic<std::int64_t> last_time_ns{0};
