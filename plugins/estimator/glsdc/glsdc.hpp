@@ -1,0 +1,116 @@
+// estimator.glsdc: planar pose from Hall voltages by Gaussian least-squares differential
+// correction (Gauss-Newton), as Kawato runs it on the DSP (thesis §4.3, spec seed-000 §3).
+//
+// Per tick, warm-started from the previous tick's estimate z (x, y, theta_z), `iterations` times:
+//   f = h(z), H = dh/dz(z), dy = y~ - f, J_before = dy' W dy             (W = diag(1/sigma^2))
+//   dz = (H' W H)^-1 H' W dy;  z1 = z + dz;  J_after = |y~ - h(z1)|_W^2
+//   z = z1 if J_after <= J_before, else z + backoff dz   (thesis scaling factor 0.2; no re-check)
+// then at the final z:  R = (H' W H)^-1 (eq. 4.28), cost = |y~ - h(z)|_W^2.
+// In 2dof mode theta is fixed (from the `theta` input if connected, else initial[2]) and only
+// x, y are estimated with the n x 2 Jacobian (eq. 4.29-4.30).
+//
+// The measurement model (h and its Jacobian) is a sensor plugin from the pipeline's `models:`,
+// e.g. sensor.halbach_hall; its state must be x [m], y [m], theta_z [rad].
+//
+// @block
+// inputs:
+//   measurement: <model channels> [V]      # exactly the model's channels, in order
+//   theta: [theta_z: rad]                  # 2dof only, optional
+// outputs:
+//   pose: [x: m, y: m, theta_z: rad]
+//   covariance: [xx: m^2, xy: m^2, xth: m*rad, yx: m^2, yy: m^2, yth: m*rad,
+//                thx: m*rad, thy: m*rad, thth: rad^2]        # R, row-major; 2dof: theta row/col 0
+//   cost: [cost: 1]                                           # J at the published estimate
+// @endblock
+//
+// Threads: configure()/activate()/describe() on the loader thread; step() on the RT thread
+// (no allocation: fixed-capacity Eigen storage sized in configure()).
+#pragma once
+
+#include <Eigen/Core>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "lode/block.hpp"
+
+namespace lode::plugins {
+
+class Glsdc final : public Block {
+ public:
+  static constexpr int kMaxChannels = 16;
+  static constexpr int kStates = 3;
+  enum StateIndex : int { kX = 0, kY, kThetaZ };
+  enum class Mode { three_dof, two_dof };
+
+  /// Channel-sized storage with a fixed capacity: resized in configure(), never in step().
+  using ChannelVector = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, kMaxChannels, 1>;
+  /// Row-major as MeasurementModel::jacobian() writes it.
+  using ChannelJacobian =
+      Eigen::Matrix<double, Eigen::Dynamic, kStates, Eigen::RowMajor, kMaxChannels, kStates>;
+  using State = Eigen::Vector3d;
+  using Covariance = Eigen::Matrix3d;
+
+  Status configure(ConfigureContext& ctx) override;
+  Status activate() override;
+  StepStatus step(const Tick& tick) noexcept override;
+  void describe(Json& out) const override;
+
+  /// @name Test hooks (read-only).
+  //@{
+  [[nodiscard]] const MeasurementModel* model() const noexcept { return model_.get(); }
+  /// Ticks whose update was skipped because H'WH was singular (rcond < kMinRcond).
+  [[nodiscard]] std::uint64_t singular_skips() const noexcept { return singular_skips_; }
+  /// Gauss-Newton steps that were cut to backoff * dz because the cost rose.
+  [[nodiscard]] std::uint64_t backoffs() const noexcept { return backoffs_; }
+  //@}
+
+  static constexpr double kMinRcond = 1e-12;
+
+ private:
+  /// f = h(z) and H = dh/dz at z, reusing the last evaluation when z has not moved (h does not
+  /// depend on the measurement, so the previous tick's final evaluation is still valid).
+  void linearise(const State& z) noexcept;
+  /// Weighted cost |y - f|_W^2.
+  [[nodiscard]] double cost_of(const ChannelVector& f) const noexcept;
+  /// R = (H' W H)^-1 over the free states and the Gauss-Newton step R H' W (y - f).
+  /// Returns false when H' W H is singular (Eigen LDLT rcond estimate < kMinRcond).
+  bool solve(Covariance& r, State& dz) const noexcept;
+  void publish() noexcept;
+
+  // Configuration.
+  std::string model_name_;
+  ModelPtr<MeasurementModel> model_;
+  Mode mode_ = Mode::three_dof;
+  int free_states_ = kStates;
+  int channels_ = 0;
+  std::int64_t iterations_ = 1;
+  double backoff_ = 0.2;
+  std::vector<double> noise_std_v_;
+  ChannelVector weight_;  ///< W diagonal, 1/sigma^2 [1/V^2]
+  State initial_ = State::Zero();
+
+  // Ports.
+  InputPort measurement_;
+  InputPort theta_;
+  OutputPort pose_;
+  OutputPort covariance_;
+  OutputPort cost_;
+
+  // Estimate and work storage (fixed capacity).
+  State z_ = State::Zero();
+  Covariance r_ = Covariance::Zero();
+  double cost_value_ = 0.0;
+  ChannelVector measured_;
+  ChannelVector predicted_;    ///< h(z) at linearised_at_
+  ChannelJacobian jacobian_;   ///< dh/dz at linearised_at_
+  ChannelVector trial_;        ///< h(z + dz)
+  State linearised_at_ = State::Zero();
+  bool linearisation_valid_ = false;
+
+  std::uint64_t singular_skips_ = 0;
+  std::uint64_t backoffs_ = 0;
+};
+
+}  // namespace lode::plugins
