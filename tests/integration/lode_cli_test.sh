@@ -39,6 +39,12 @@ check "runtime fault exit code" 1 $?
 contains "fault reported" "$TMP/fault.out" "FAULT: .*driven safe"
 contains "fault in summary" "$TMP/fault.json" '"result": "fault"'
 
+# RT-side warnings travel through the RT log ring into the log and the event list.
+sed 's/adc_range_v: 10/adc_range_v: 2/' "$SRC/config/kawato_planar.yaml" >"$TMP/clip.yaml"
+"$LODE" run "$TMP/clip.yaml" --duration 0.2 --summary-json "$TMP/clip.json" >"$TMP/clip.out" 2>&1
+contains "rt_log warning printed" "$TMP/clip.out" "stage cycle 0\] ADC saturated on [0-9]+ channel"
+contains "rt_log warning in events" "$TMP/clip.json" '"kind": "warning"'
+
 "$LODE" frobnicate >"$TMP/usage.out" 2>&1; check "unknown command" 2 $?
 "$LODE" run "$SRC/config/kawato_planar.yaml" --clock wall >"$TMP/clock.out" 2>&1; check "bad --clock" 2 $?
 "$LODE" plugins >"$TMP/plugins.out" 2>&1; check "plugins" 0 $?

@@ -1,5 +1,9 @@
 #include "glsdc.hpp"
 
+#include "lode/rt_log.hpp"
+
+#include "lode/rt_log.hpp"
+
 #include <Eigen/Cholesky>
 #include <cmath>
 #include <cstdio>
@@ -24,6 +28,7 @@ constexpr std::int64_t kMaxIterations = 100;
 }  // namespace
 
 Status Glsdc::configure(ConfigureContext& ctx) {
+  block_name_ = ctx.block_name();
   Params& params = ctx.params();
   model_name_ = params.text("model");
   mode_ = params.choice("mode", {"3dof", "2dof"}, "3dof") == "2dof" ? Mode::two_dof
@@ -206,7 +211,14 @@ StepStatus Glsdc::step(const Tick& /*tick*/) noexcept {
   } else {
     singular = true;  // keep the last good covariance
   }
-  if (singular) ++singular_skips_;
+  if (singular) {
+    // Report the first skip of a run of them, not every tick: the ring is shared.
+    if (!was_singular_)
+      lode::rt_log(lode::LogLevel::warn, block_name_.c_str(),
+                   "H^T W H singular (rcond < {}): holding the estimate", kMinRcond);
+    ++singular_skips_;
+  }
+  was_singular_ = singular;
   publish();
   return StepStatus::ok;
 }

@@ -110,6 +110,8 @@ class Glsdc final : public Block {
   bool linearisation_valid_ = false;
 
   std::uint64_t singular_skips_ = 0;
+  bool was_singular_ = false;
+  std::string block_name_;  ///< source of rt_log records (lives as long as the block)
   std::uint64_t backoffs_ = 0;
 };
 

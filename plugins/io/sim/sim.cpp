@@ -1,5 +1,7 @@
 #include "sim.hpp"
 
+#include "lode/rt_log.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -38,6 +40,7 @@ constexpr std::int64_t kMaxSubsteps = 100000;
 }  // namespace
 
 Status SimBoard::configure(ConfigureContext& ctx) {
+  block_name_ = ctx.block_name();
   Params& params = ctx.params();
 
   // --- plant ---------------------------------------------------------------------------
@@ -272,7 +275,14 @@ StepStatus SimBoard::sample(std::int64_t time_ns, bool with_noise) noexcept {
       signals_[c] = volts;
     }
   }
-  if (saturated > 0) saturations_.fetch_add(saturated, std::memory_order_relaxed);
+  if (saturated > 0) {
+    saturations_.fetch_add(saturated, std::memory_order_relaxed);
+    if (!was_saturated_)
+      lode::rt_log(lode::LogLevel::warn, block_name_.c_str(),
+                   "ADC saturated on {} channel(s) (range +-{} V)", static_cast<double>(saturated),
+                   adc_range_v_);
+  }
+  was_saturated_ = saturated > 0;
   return StepStatus::ok;
 }
 

@@ -119,6 +119,8 @@ class SimBoard final : public Block {
   // Health, readable from describe() while running
   std::atomic<bool> safe_{false};
   std::atomic<std::uint64_t> saturations_{0};
+  bool was_saturated_ = false;
+  std::string block_name_;  ///< source of rt_log records (lives as long as the block)
   std::atomic<std::uint64_t> command_clamps_{0};
 };
 
