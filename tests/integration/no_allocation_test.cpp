@@ -3,9 +3,7 @@
 // cycles run (operator new ends in malloc, Eigen's aligned allocation too), including
 // calls made from the dlopen'ed plugins.
 #include <gtest/gtest.h>
-#include <malloc.h>
 
-#include <atomic>
 #include <cstdlib>
 #include <filesystem>
 #include <vector>
@@ -13,75 +11,31 @@
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
 #include "lode/scheduler.hpp"
-
-extern "C" {
-void* __libc_malloc(size_t);
-void* __libc_calloc(size_t, size_t);
-void* __libc_realloc(void*, size_t);
-void* __libc_memalign(size_t, size_t);
-void __libc_free(void*);
-}
-
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<std::size_t> g_allocations{0};
-inline void count() {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1, std::memory_order_relaxed);
-}
-}  // namespace
-
-extern "C" {
-void* malloc(size_t n) {
-  count();
-  return __libc_malloc(n);
-}
-void* calloc(size_t n, size_t m) {
-  count();
-  return __libc_calloc(n, m);
-}
-void* realloc(void* p, size_t n) {
-  count();
-  return __libc_realloc(p, n);
-}
-void* memalign(size_t a, size_t n) {
-  count();
-  return __libc_memalign(a, n);
-}
-void* aligned_alloc(size_t a, size_t n) {
-  count();
-  return __libc_memalign(a, n);
-}
-int posix_memalign(void** out, size_t a, size_t n) {
-  count();
-  *out = __libc_memalign(a, n);
-  return *out ? 0 : ENOMEM;
-}
-void free(void* p) { __libc_free(p); }
-}
+#include "lode/testing/allocation_counter.hpp"
 
 namespace {
 
-class CountingScope {
- public:
-  CountingScope() {
-    g_allocations = 0;
-    g_counting = true;
-  }
-  ~CountingScope() { g_counting = false; }
-  static std::size_t count() { return g_allocations.load(); }
-};
+using lode::testing::allocation_count;
+
+/// Keeps the compiler from eliding an allocation it can see is unused.
+void escape(void* p) { asm volatile("" : : "g"(p) : "memory"); }
 
 TEST(AllocationCounter, SeesAllocations) {
   // Guards the guard: the counter must see an ordinary allocation, or the test below
   // proves nothing.
-  std::size_t seen = 0;
-  {
-    CountingScope scope;
-    auto* v = new std::vector<double>(100);
-    seen = CountingScope::count();
-    delete v;
-  }
+  const auto before = allocation_count();
+  auto* v = new std::vector<double>(100);
+  escape(v);
+  escape(v->data());
+  const auto seen = allocation_count() - before;
+  delete v;
   EXPECT_GE(seen, 2u);
+  // Eigen's aligned heap buffers go through the malloc family, not operator new.
+  const auto before_malloc = allocation_count();
+  void* raw = std::malloc(64);
+  escape(raw);
+  EXPECT_EQ(allocation_count() - before_malloc, 1u);
+  std::free(raw);
 }
 
 std::vector<std::string> shipped_pipelines() {
@@ -109,21 +63,17 @@ TEST_P(NoAllocation, HundredThousandCyclesAllocateNothing) {
   tick.dt_s = 1.0 / p->rate_hz();
   std::size_t allocations = 0;
   std::uint64_t faults = 0;
-  {
-    CountingScope scope;
-    for (std::uint64_t k = 0; k < 100000; ++k) {
-      tick.cycle = k;
-      tick.time_ns = static_cast<std::int64_t>(k) * p->period_ns();
-      if (p->run_cycle(tick, true).status != lode::StepStatus::ok) ++faults;
-      tap.capture(k, tick.time_ns);
-      if ((k & 511) == 511) {
-        g_counting = false;  // draining is the consumer's (non-RT) side
-        drained.clear();
-        tap.drain(drained);
-        g_counting = true;
-      }
+  for (std::uint64_t k = 0; k < 100000; ++k) {
+    tick.cycle = k;
+    tick.time_ns = static_cast<std::int64_t>(k) * p->period_ns();
+    const auto before = allocation_count();
+    if (p->run_cycle(tick, true).status != lode::StepStatus::ok) ++faults;
+    tap.capture(k, tick.time_ns);
+    allocations += allocation_count() - before;
+    if ((k & 511) == 511) {  // draining is the consumer's (non-RT) side: not counted
+      drained.clear();
+      tap.drain(drained);
     }
-    allocations = CountingScope::count();
   }
   EXPECT_EQ(faults, 0u);
   EXPECT_EQ(allocations, 0u) << GetParam() << ": step() allocated";

@@ -17,21 +17,9 @@
 #include <string>
 #include <vector>
 
+#include "lode/testing/allocation_counter.hpp"
 #include "lode/testing/harness.hpp"
 
-// Allocation counter for the whole test process, the plugin modules included.
-namespace {
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-void* operator new(std::size_t size) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-// Not inlined: GCC 12 would otherwise pair the inlined free() with `new` expressions and warn.
-[[gnu::noinline]] void operator delete(void* p) noexcept { std::free(p); }
-[[gnu::noinline]] void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace lode::plugins {
 namespace {
@@ -513,12 +501,12 @@ TEST(ControllerDiscreteTf, StepDoesNotAllocate) {
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   ASSERT_TRUE(h.activate());
   auto measurement = h.input("measurement");
-  const long before = g_allocations.load();
+  const long before = static_cast<long>(lode::testing::allocation_count());
   for (int k = 0; k < 10000; ++k) {
     measurement[0] = 1e-4 * std::sin(0.01 * k);
     if (h.step() != StepStatus::ok) FAIL() << h.block().fault_reason();
   }
-  EXPECT_EQ(g_allocations.load() - before, 0);
+  EXPECT_EQ(static_cast<long>(lode::testing::allocation_count()) - before, 0);
 }
 
 }  // namespace

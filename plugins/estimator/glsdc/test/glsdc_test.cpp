@@ -22,21 +22,9 @@
 #include <string>
 #include <vector>
 
+#include "lode/testing/allocation_counter.hpp"
 #include "lode/testing/harness.hpp"
 
-// ---- Allocation counter for the whole test process (the plugin modules included). --------
-namespace {
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-void* operator new(std::size_t size) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-// Not inlined: GCC would otherwise pair the inlined free() with `new` expressions and warn.
-[[gnu::noinline]] void operator delete(void* p) noexcept { std::free(p); }
-[[gnu::noinline]] void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace lode::plugins {
 namespace {
@@ -697,13 +685,13 @@ TEST(GlsdcRealTime, StepDoesNotAllocate) {
   std::vector<std::vector<double>> inputs;
   for (int i = 0; i < 100; ++i) inputs.push_back(truth.measure(1e-4 * i, -5e-5 * i, 1e-5 * i));
   auto in = rig.harness().input("measurement");
-  const long before = g_allocations.load();
+  const long before = static_cast<long>(lode::testing::allocation_count());
   for (int k = 0; k < 10000; ++k) {
     const std::vector<double>& y = inputs[static_cast<std::size_t>(k % 100)];
     std::copy(y.begin(), y.end(), in.begin());
     rig.harness().step();
   }
-  const long allocations = g_allocations.load() - before;
+  const long allocations = static_cast<long>(lode::testing::allocation_count()) - before;
   EXPECT_EQ(allocations, 0);
 }
 

@@ -20,28 +20,9 @@
 
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
+#include "lode/testing/allocation_counter.hpp"
 #include "lode/testing/harness.hpp"
 
-// ---- Allocation counter for the whole test process (the plugin modules included). --------
-// GCC 12 flags free() on memory from a replaced operator new once both are inlined into
-// std::allocator; the pairing is correct (malloc/free on both sides).
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-namespace {
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-void* operator new(std::size_t size) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void* operator new(std::size_t size, const std::nothrow_t&) noexcept {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  return std::malloc(size == 0 ? 1 : size);
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete(void* p, const std::nothrow_t&) noexcept { std::free(p); }
 
 namespace {
 
@@ -619,14 +600,14 @@ TEST(IoSimRealtime, CycleDoesNotAllocate) {
   ASSERT_TRUE(b.ok) << b.why;
   auto command = b.h.input("command");  // name lookups allocate: done before counting
   BlockHarness& h = b.h;
-  const long before = g_allocations.load();
+  const long before = static_cast<long>(lode::testing::allocation_count());
   for (int k = 0; k < 10000; ++k) {
     command[0] = std::sin(k * 0.01);
     command[2] = 0.2 * std::cos(k * 0.01);  // sometimes clamped
     h.step();
     h.write();
   }
-  const long during = g_allocations.load() - before;
+  const long during = static_cast<long>(lode::testing::allocation_count()) - before;
   EXPECT_EQ(during, 0) << "allocations in 10000 read/write cycles";
 }
 
