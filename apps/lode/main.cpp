@@ -87,15 +87,32 @@ std::optional<Args> parse_args(int argc, char** argv) {
   return a;
 }
 
-std::unique_ptr<lode::Pipeline> load_or_report(const std::string& path, lode::PluginRegistry& reg) {
+/// The pipeline named by the command's one positional argument, with the registry whose
+/// libraries its blocks live in (declared first: destroyed last).
+struct LoadedConfig {
+  std::unique_ptr<lode::PluginRegistry> registry;
+  std::unique_ptr<lode::Pipeline> pipeline;
+  std::string path;
+};
+
+/// Prints the usage or every diagnostic and returns nullopt when there is nothing to run.
+std::optional<LoadedConfig> load_config_argument(const Args& args) {
+  if (args.positional.size() != 1) {
+    std::fputs(kUsage, stderr);
+    return std::nullopt;
+  }
+  LoadedConfig loaded;
+  loaded.path = args.positional[0];
+  loaded.registry = std::make_unique<lode::PluginRegistry>();
   lode::Diagnostics diag;
-  auto p = lode::Pipeline::load_file(path, reg, diag);
-  if (!p) {
+  loaded.pipeline = lode::Pipeline::load_file(loaded.path, *loaded.registry, diag);
+  if (!loaded.pipeline) {
     std::fputs(diag.format().c_str(), stderr);
     std::fprintf(stderr, "lode: %zu problem%s in %s; nothing was started\n", diag.size(),
-                 diag.size() == 1 ? "" : "s", path.c_str());
+                 diag.size() == 1 ? "" : "s", loaded.path.c_str());
+    return std::nullopt;
   }
-  return p;
+  return loaded;
 }
 
 // ---------------------------------------------------------------------------------------
@@ -153,13 +170,9 @@ int cmd_plugins(const Args& args) {
 }
 
 int cmd_check(const Args& args) {
-  if (args.positional.size() != 1) {
-    std::fputs(kUsage, stderr);
-    return kExitConfig;
-  }
-  lode::PluginRegistry reg;
-  auto p = load_or_report(args.positional[0], reg);
-  if (!p) return kExitConfig;
+  auto loaded = load_config_argument(args);
+  if (!loaded) return kExitConfig;
+  const auto& p = loaded->pipeline;
   std::printf("%s: ok: pipeline '%s' at %g Hz, %zu operations per cycle:", args.positional[0].c_str(),
               p->name().c_str(), p->rate_hz(), p->ops().size());
   for (const auto& op : p->ops()) std::printf(" %s", op.label.c_str());
@@ -168,14 +181,9 @@ int cmd_check(const Args& args) {
 }
 
 int cmd_describe(const Args& args) {
-  if (args.positional.size() != 1) {
-    std::fputs(kUsage, stderr);
-    return kExitConfig;
-  }
-  lode::PluginRegistry reg;
-  auto p = load_or_report(args.positional[0], reg);
-  if (!p) return kExitConfig;
-  std::cout << p->describe().dump() << "\n";
+  auto loaded = load_config_argument(args);
+  if (!loaded) return kExitConfig;
+  std::cout << loaded->pipeline->describe().dump() << "\n";
   return kExitOk;
 }
 
@@ -360,20 +368,16 @@ lode::Json timing_json(const lode::Pipeline& p, const lode::Scheduler& s, const 
 }
 
 int cmd_run(const Args& args) {
-  if (args.positional.size() != 1) {
-    std::fputs(kUsage, stderr);
-    return kExitConfig;
-  }
-  const std::string config = args.positional[0];
   const std::string clock_name = args.options.count("--clock") ? args.options.at("--clock") : "sim";
   if (clock_name != "sim" && clock_name != "real") {
     std::fprintf(stderr, "lode: --clock must be sim or real, got '%s'\n", clock_name.c_str());
     return kExitConfig;
   }
   const bool quiet = args.has_flag("--quiet");
-  lode::PluginRegistry reg;
-  auto p = load_or_report(config, reg);
-  if (!p) return kExitConfig;
+  auto loaded = load_config_argument(args);
+  if (!loaded) return kExitConfig;
+  auto& p = loaded->pipeline;
+  const std::string& config = loaded->path;
   double duration = p->default_duration_s().value_or(10.0);
   if (args.options.count("--duration")) {
     char* end = nullptr;
@@ -526,13 +530,9 @@ int cmd_run(const Args& args) {
 
 // ---------------------------------------------------------------------------------------
 int cmd_bench(const Args& args) {
-  if (args.positional.size() != 1) {
-    std::fputs(kUsage, stderr);
-    return kExitConfig;
-  }
-  lode::PluginRegistry reg;
-  auto p = load_or_report(args.positional[0], reg);
-  if (!p) return kExitConfig;
+  auto loaded = load_config_argument(args);
+  if (!loaded) return kExitConfig;
+  auto& p = loaded->pipeline;
   std::uint64_t cycles = 100000;
   if (args.options.count("--cycles")) cycles = std::strtoull(args.options.at("--cycles").c_str(), nullptr, 10);
   if (auto st = p->activate(); !st) {
