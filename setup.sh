@@ -12,7 +12,7 @@ case "$mode" in demo|test|build) ;; *) echo "usage: $0 demo|test|build" >&2; exi
 
 PACKAGES=(build-essential g++ cmake make pkg-config
   libeigen3-dev libyaml-cpp-dev libspdlog-dev libfmt-dev
-  libgtest-dev libgmock-dev libbenchmark-dev rt-tests)
+  libgtest-dev libgmock-dev libbenchmark-dev rt-tests libslicot-dev)
 
 as_root() { if [ "$(id -u)" -eq 0 ]; then "$@"; else sudo "$@"; fi; }
 missing=()

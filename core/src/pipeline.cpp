@@ -240,6 +240,9 @@ class LoaderContext final : public ConfigureContext {
   std::unique_ptr<MeasurementModel> measurement_model(std::string_view key) override {
     return p_.make_model<MeasurementModel>(params_, key, PluginKind::sensor);
   }
+  std::unique_ptr<ProcessModel> process_model(std::string_view key) override {
+    return p_.make_model<ProcessModel>(params_, key, PluginKind::process);
+  }
   std::vector<std::unique_ptr<MeasurementModel>> measurement_models(std::string_view key) override {
     std::vector<std::unique_ptr<MeasurementModel>> out;
     for (const auto& name : params_.texts(key, {})) {
@@ -271,18 +274,14 @@ std::unique_ptr<M> Pipeline::Impl::make_model_named(Params& block_params, std::s
   }
   ModelSpec& spec = it->second;
   if (!spec.plugin.descriptor) return nullptr;  // its plugin failed to load: already reported
-  if (spec.plugin.descriptor->kind != kind) {
+  // The interface decides, not the declared kind: a plant plugin may also be a process model.
+  std::unique_ptr<Component> made(spec.plugin.descriptor->create());
+  auto* typed = dynamic_cast<M*>(made.get());
+  if (!typed) {
     block_params.fail(key, "model '" + model_name + "' is a " +
                                to_string(spec.plugin.descriptor->kind) + " (" +
                                spec.plugin.descriptor->name + "), this parameter needs a " +
                                to_string(kind) + " model");
-    return nullptr;
-  }
-  std::unique_ptr<Component> made(spec.plugin.descriptor->create());
-  auto* typed = dynamic_cast<M*>(made.get());
-  if (!typed) {
-    block_params.fail(key, std::string("plugin ") + spec.plugin.descriptor->name +
-                               " does not implement the model interface its kind promises");
     return nullptr;
   }
   made.release();
@@ -408,10 +407,11 @@ void Pipeline::Impl::parse_models(const YAML::Node& models_node) {
       if (!loaded) {
         error(detail::location_of(kv.second["plugin"], file), path + ".plugin", loaded.error());
       } else if (loaded->descriptor->kind != PluginKind::plant &&
-                 loaded->descriptor->kind != PluginKind::sensor) {
+                 loaded->descriptor->kind != PluginKind::sensor &&
+                 loaded->descriptor->kind != PluginKind::process) {
         error(detail::location_of(kv.second["plugin"], file), path + ".plugin",
               std::string("plugin ") + loaded->descriptor->name + " is a " +
-                  to_string(loaded->descriptor->kind) + ", not a model (plant or sensor)");
+                  to_string(loaded->descriptor->kind) + ", not a model (plant, sensor or process)");
       } else {
         spec.plugin = *loaded;
       }

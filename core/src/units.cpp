@@ -44,6 +44,7 @@ const char* to_string(PluginKind kind) {
     case PluginKind::io: return "io";
     case PluginKind::plant: return "plant";
     case PluginKind::sensor: return "sensor";
+    case PluginKind::process: return "process";
   }
   return "unknown";
 }

@@ -72,12 +72,13 @@ class ConfigureContext {
   /// Returns nullptr after recording a diagnostic if it does not exist or fails.
   virtual std::unique_ptr<PlantModel> plant_model(std::string_view key) = 0;
   virtual std::unique_ptr<MeasurementModel> measurement_model(std::string_view key) = 0;
+  virtual std::unique_ptr<ProcessModel> process_model(std::string_view key) = 0;
   /// Parameter `key` holds a list of model names (or one name): one model per name, in order.
   /// An entry that fails is reported and left out (the result is then shorter than the list).
   virtual std::vector<std::unique_ptr<MeasurementModel>> measurement_models(std::string_view key) = 0;
 };
 
-class Block : public Component {
+class Block : public virtual Component {
  public:
   /// Read parameters, declare ports, allocate, compute gains. Report every problem.
   virtual Status configure(ConfigureContext& ctx) = 0;

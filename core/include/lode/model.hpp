@@ -14,7 +14,7 @@
 
 namespace lode {
 
-class PlantModel : public Component {
+class PlantModel : public virtual Component {
  public:
   /// Off the RT thread: read parameters, size the state.
   virtual Status configure(Params& params) = 0;
@@ -33,7 +33,7 @@ class PlantModel : public Component {
   virtual void describe(Json& /*out*/) const {}
 };
 
-class MeasurementModel : public Component {
+class MeasurementModel : public virtual Component {
  public:
   virtual Status configure(Params& params) = 0;
   /// The configuration it depends on, e.g. x [m], y [m], theta_z [rad].
@@ -45,6 +45,28 @@ class MeasurementModel : public Component {
   /// y = h(state) and H = dh/dstate, row-major channels() x state_elements().
   virtual void jacobian(const double* state, double* y, double* H) const noexcept = 0;
   virtual void describe(Json& /*out*/) const {}
+};
+
+/// A discrete-time process model x_{k+1} = f(x_k, u_k) for estimators (EKF, UKF).
+///
+/// Stateless: the estimator owns the state. A plant plugin may implement both PlantModel
+/// (the simulator's truth, with its own state) and ProcessModel (the estimator's f), so
+/// one set of physics serves both; Component is a virtual base for that reason.
+class ProcessModel : public virtual Component {
+ public:
+  virtual Status configure(Params& params) = 0;
+  /// State layout, e.g. gap [m], velocity [m/s], current [A].
+  [[nodiscard]] virtual const Elements& process_state() const = 0;
+  /// Known inputs u (may be empty), e.g. voltage [V].
+  [[nodiscard]] virtual const Elements& process_inputs() const = 0;
+  /// x_next = f(x, u) over dt_s. RT-safe.
+  virtual void propagate(double dt_s, const double* x, const double* u, double* x_next) const noexcept = 0;
+  /// F = df/dx (row-major n x n) at (x, u). Returns false if the model has no analytic
+  /// Jacobian (an EKF then differentiates numerically). RT-safe.
+  virtual bool process_jacobian(double /*dt_s*/, const double* /*x*/, const double* /*u*/,
+                                double* /*F*/) const noexcept {
+    return false;
+  }
 };
 
 }  // namespace lode

@@ -17,7 +17,7 @@
 
 namespace lode {
 
-inline constexpr std::uint32_t kPluginAbiVersion = 1;
+inline constexpr std::uint32_t kPluginAbiVersion = 2;  // 2: ProcessModel, virtual Component base
 inline constexpr const char* kPluginSymbol = "lode_plugin_descriptor";
 
 enum class PluginKind : std::uint32_t {
@@ -25,6 +25,7 @@ enum class PluginKind : std::uint32_t {
   io = 1,      ///< a board: read phase and write phase
   plant = 2,   ///< PlantModel
   sensor = 3,  ///< MeasurementModel
+  process = 4, ///< ProcessModel only (a plant plugin may also implement ProcessModel)
 };
 
 const char* to_string(PluginKind kind);
