@@ -1,11 +1,21 @@
-// Per-block step cost and whole-cycle cost of the shipped pipelines (Google Benchmark).
+// Step cost of every operation of every shipped pipeline, and of its whole cycle.
+//
 //   ./build/tests/lode_pipeline_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+//   ./build/tests/lode_pipeline_bench --benchmark_filter=kawato
+//
+// Each pipeline runs its real cycle; an operation's benchmark times only that operation
+// (manual timing: PauseTiming() costs more than the cheaper blocks), the others run untimed
+// so its inputs stay live.
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <memory>
+#include <string>
+#include <vector>
 
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
@@ -17,59 +27,68 @@ struct Loaded {
   std::unique_ptr<lode::Pipeline> pipeline;
   lode::Tick tick;
   std::uint64_t cycle = 0;
+
+  void advance() {
+    tick.cycle = cycle++;
+    tick.time_ns = static_cast<std::int64_t>(tick.cycle) * pipeline->period_ns();
+  }
+  void run_op(std::size_t i) {
+    auto& op = pipeline->ops()[i];
+    benchmark::DoNotOptimize(op.write_phase ? op.block->write(tick) : op.block->step(tick));
+  }
 };
 
-Loaded& kawato() {
-  static std::unique_ptr<Loaded> l = [] {
-    auto x = std::make_unique<Loaded>();
-    lode::Diagnostics diag;
-    x->pipeline = lode::Pipeline::load_file(LODE_SOURCE_DIR "/config/kawato_planar.yaml", x->registry, diag);
-    if (!x->pipeline || !x->pipeline->activate()) {
-      std::fputs(diag.format().c_str(), stderr);
-      std::abort();
+std::vector<std::unique_ptr<Loaded>>& pipelines() {
+  static std::vector<std::unique_ptr<Loaded>> all;
+  return all;
+}
+
+void register_pipeline(const std::filesystem::path& file) {
+  auto l = std::make_unique<Loaded>();
+  lode::Diagnostics diag;
+  l->pipeline = lode::Pipeline::load_file(file.string(), l->registry, diag);
+  if (!l->pipeline || !l->pipeline->activate()) {
+    std::fprintf(stderr, "skipping %s:\n%s", file.c_str(), diag.format().c_str());
+    return;
+  }
+  l->tick.dt_s = 1.0 / l->pipeline->rate_hz();
+  Loaded* p = l.get();
+  const std::string name = file.stem().string();
+  benchmark::RegisterBenchmark((name + "/whole_cycle").c_str(), [p](benchmark::State& state) {
+    for (auto _ : state) {
+      p->advance();
+      benchmark::DoNotOptimize(p->pipeline->run_cycle(p->tick, false));
     }
-    x->tick.dt_s = 1.0 / x->pipeline->rate_hz();
-    return x;
-  }();
-  return *l;
-}
-
-void advance(Loaded& l) {
-  l.tick.cycle = l.cycle++;
-  l.tick.time_ns = static_cast<std::int64_t>(l.tick.cycle) * l.pipeline->period_ns();
-}
-
-void BM_KawatoWholeCycle(benchmark::State& state) {
-  auto& l = kawato();
-  for (auto _ : state) {
-    advance(l);
-    benchmark::DoNotOptimize(l.pipeline->run_cycle(l.tick, false));
+  });
+  const auto& ops = p->pipeline->ops();
+  for (std::size_t index = 0; index < ops.size(); ++index) {
+    benchmark::RegisterBenchmark((name + "/" + ops[index].label).c_str(), [p, index](benchmark::State& state) {
+      const std::size_t n = p->pipeline->ops().size();
+      for (auto _ : state) {
+        p->advance();
+        for (std::size_t i = 0; i < index; ++i) p->run_op(i);
+        const auto t0 = std::chrono::steady_clock::now();
+        p->run_op(index);
+        const auto t1 = std::chrono::steady_clock::now();
+        state.SetIterationTime(std::chrono::duration<double>(t1 - t0).count());
+        for (std::size_t i = index + 1; i < n; ++i) p->run_op(i);
+      }
+    })->UseManualTime();
   }
+  pipelines().push_back(std::move(l));
 }
-BENCHMARK(BM_KawatoWholeCycle);
-
-// One operation of the cycle in isolation (the others run untimed so inputs stay live).
-void BM_KawatoOp(benchmark::State& state) {
-  auto& l = kawato();
-  auto& ops = l.pipeline->ops();
-  const auto index = static_cast<std::size_t>(state.range(0));
-  state.SetLabel(ops[index].label);
-  // Manual time around the one op: PauseTiming() costs more than the cheaper blocks.
-  for (auto _ : state) {
-    advance(l);
-    for (std::size_t i = 0; i < index; ++i)
-      ops[i].write_phase ? ops[i].block->write(l.tick) : ops[i].block->step(l.tick);
-    auto& op = ops[index];
-    const auto t0 = std::chrono::steady_clock::now();
-    benchmark::DoNotOptimize(op.write_phase ? op.block->write(l.tick) : op.block->step(l.tick));
-    const auto t1 = std::chrono::steady_clock::now();
-    state.SetIterationTime(std::chrono::duration<double>(t1 - t0).count());
-    for (std::size_t i = index + 1; i < ops.size(); ++i)
-      ops[i].write_phase ? ops[i].block->write(l.tick) : ops[i].block->step(l.tick);
-  }
-}
-BENCHMARK(BM_KawatoOp)->DenseRange(0, 5)->UseManualTime();
 
 }  // namespace
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) {
+  std::vector<std::filesystem::path> files;
+  for (const auto& e : std::filesystem::directory_iterator(LODE_SOURCE_DIR "/config"))
+    if (e.path().extension() == ".yaml") files.push_back(e.path());
+  std::sort(files.begin(), files.end());
+  for (const auto& f : files) register_pipeline(f);
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}
