@@ -116,9 +116,15 @@ std::vector<AxisStats> window_stats(const std::vector<double>& t, const Series& 
   return out;
 }
 
-std::pair<double, std::string> display_scale(const std::string& unit) {
-  if (unit == "m") return {1e6, "um"};
-  if (unit == "rad") return {1e6, "urad"};
+std::pair<double, std::string> display_scale(const std::string& unit, double magnitude) {
+  const bool scalable = unit == "m" || unit.rfind("m/", 0) == 0 || unit.rfind("rad", 0) == 0 ||
+                        unit == "V" || unit.rfind("V/", 0) == 0;
+  if (!scalable) return {1.0, unit};
+  const double m = std::abs(magnitude);
+  if (m == 0.0 || !std::isfinite(m)) return {1e6, "u" + unit};
+  if (m < 1e-6) return {1e9, "n" + unit};
+  if (m < 1e-3) return {1e6, "u" + unit};
+  if (m < 1.0) return {1e3, "m" + unit};
   return {1.0, unit};
 }
 

@@ -51,7 +51,9 @@ struct AxisStats {
 std::vector<AxisStats> window_stats(const std::vector<double>& time_s, const Series& a,
                                     const Series* b, double t0, double t1);
 
-/// Human scale for a unit: m -> um (1e6), rad -> urad (1e6); else 1.
-std::pair<double, std::string> display_scale(const std::string& unit);
+/// Human scale for a value of this magnitude in this unit: an SI prefix (n, u, m) on the
+/// unit's leading symbol, e.g. (1.5e-9, "m") -> (1e9, "nm"), (2e-6, "m/s") -> (1e6, "um/s").
+/// Units that do not start with m, rad or V are left alone.
+std::pair<double, std::string> display_scale(const std::string& unit, double magnitude);
 
 }  // namespace lode::analysis

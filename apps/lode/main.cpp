@@ -204,7 +204,7 @@ struct Recording {
 };
 
 std::string format_value(double v, const std::string& unit) {
-  auto [scale, shown] = lode::analysis::display_scale(unit);
+  auto [scale, shown] = lode::analysis::display_scale(unit, v);
   char buf[64];
   std::snprintf(buf, sizeof buf, "%+.3f %s", v * scale, shown.c_str());
   return buf;
@@ -242,7 +242,8 @@ void print_stats(const char* title, const std::vector<lode::analysis::AxisStats>
                  const lode::Elements& e, bool std_only) {
   std::printf("  %-34s", title);
   for (std::size_t i = 0; i < stats.size(); ++i) {
-    auto [scale, unit] = lode::analysis::display_scale(e[i].unit);
+    auto [scale, unit] =
+        lode::analysis::display_scale(e[i].unit, std_only ? stats[i].std : std::max(stats[i].rms, stats[i].max_abs));
     if (std_only)
       std::printf("  %s %.3f %s", e[i].name.c_str(), stats[i].std * scale, unit.c_str());
     else
@@ -281,9 +282,10 @@ lode::Json analyse(const lode::Pipeline& p, const Recording& rec, std::string_vi
       const auto hold_est = window_stats(t, est, nullptr, h0, h1);
       noise["estimate"] = stats_json(hold_est, est.elements);
       print_stats("  as the estimator reports it", hold_est, est.elements, true);
-      const auto err = window_stats(t, est, &truth, 0.0, t.back());
+      // From the start of the hold window: the start-up transient is not an estimation error.
+      const auto err = window_stats(t, est, &truth, h0, t.back());
       out["estimation_error"] = stats_json(err, est.elements);
-      print_stats("estimation error (estimate-truth)", err, est.elements, false);
+      print_stats("estimation error (estimate-truth)", err, est.elements, false);  // from h0
     }
     lode::Json others = lode::Json::object();
     for (const int index : rec.extra) {
@@ -294,7 +296,7 @@ lode::Json analyse(const lode::Pipeline& p, const Recording& rec, std::string_vi
       oj["hold_noise"] = stats_json(hold, series.elements);
       print_stats(("  as " + name + " reports it").c_str(), hold, series.elements, true);
       if (series.width() == truth.width()) {
-        const auto err = window_stats(t, series, &truth, 0.0, t.back());
+        const auto err = window_stats(t, series, &truth, h0, t.back());
         oj["error_vs_truth"] = stats_json(err, series.elements);
         print_stats(("  " + name + " - truth").c_str(), err, series.elements, false);
       }
@@ -304,7 +306,7 @@ lode::Json analyse(const lode::Pipeline& p, const Recording& rec, std::string_vi
     out["position_noise"] = std::move(noise);
     if (rec.reference >= 0) {
       const auto ref = column_series(rec, rec.reference);
-      const auto track = window_stats(t, ref, &truth, 0.0, t.back());
+      const auto track = window_stats(t, ref, &truth, h0, t.back());
       out["tracking_error"] = stats_json(track, truth.elements);
       print_stats("tracking error (reference-truth)", track, truth.elements, false);
       // A settling band narrower than the noise would make the settling time a measure of
@@ -315,7 +317,7 @@ lode::Json analyse(const lode::Pipeline& p, const Recording& rec, std::string_vi
       lode::Json sj = lode::Json::array();
       for (const auto& s : steps) {
         const auto& el = truth.elements[s.axis];
-        auto [scale, unit] = display_scale(el.unit);
+        auto [scale, unit] = display_scale(el.unit, s.amplitude);
         lode::Json j = lode::Json::object();
         j["axis"] = el.name;
         j["time_s"] = s.time_s;

@@ -40,6 +40,8 @@ class Expected {
   const T& value() const { return std::get<0>(v_); }
   T& operator*() { return value(); }
   T* operator->() { return &value(); }
+  const T* operator->() const { return &value(); }
+  const T& operator*() const { return value(); }
   [[nodiscard]] const std::string& error() const { return std::get<1>(v_).message(); }
   [[nodiscard]] Status status() const { return has_value() ? Status::ok() : std::get<1>(v_); }
 

@@ -1,11 +1,10 @@
 #include "discrete_tf.hpp"
 
-#include <Eigen/Dense>
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <numbers>
+#include <optional>
 #include <set>
 #include <string>
 
@@ -78,34 +77,22 @@ std::complex<double> Design::evaluate(std::complex<double> z) const {
   return n / d;
 }
 
-std::vector<double> poly_from_roots(const std::vector<double>& roots) {
-  std::vector<double> p{1.0};
-  for (double r : roots) {
-    // p(z) (z - r): shift and subtract.
-    p.push_back(0.0);
-    for (std::size_t i = p.size() - 1; i > 0; --i) p[i] -= r * p[i - 1];
-  }
-  return p;
+namespace {
+
+lode::math::Zpk zpk(const std::vector<double>& zeros_s, const std::vector<double>& poles_s, double gain) {
+  lode::math::Zpk out;
+  out.gain = gain;
+  for (double z : zeros_s) out.zeros.emplace_back(z, 0.0);
+  for (double p : poles_s) out.poles.emplace_back(p, 0.0);
+  return out;
 }
 
-std::vector<std::complex<double>> poly_roots(const std::vector<double>& coefficients) {
-  std::size_t first = 0;
-  while (first < coefficients.size() && coefficients[first] == 0.0) ++first;
-  if (first + 1 >= coefficients.size()) return {};
-  const auto degree = static_cast<Eigen::Index>(coefficients.size() - first - 1);
-  Eigen::MatrixXd companion = Eigen::MatrixXd::Zero(degree, degree);
-  for (Eigen::Index j = 0; j < degree; ++j) {
-    companion(0, j) = -coefficients[first + 1 + static_cast<std::size_t>(j)] / coefficients[first];
-  }
-  for (Eigen::Index i = 1; i < degree; ++i) companion(i, i - 1) = 1.0;
-  Eigen::EigenSolver<Eigen::MatrixXd> solver(companion, false);
-  std::vector<std::complex<double>> roots;
-  for (Eigen::Index i = 0; i < degree; ++i) roots.push_back(solver.eigenvalues()(i));
-  std::sort(roots.begin(), roots.end(), [](auto a, auto b) {
-    return a.real() != b.real() ? a.real() > b.real() : a.imag() > b.imag();
-  });
-  return roots;
+bool usable(const std::vector<double>& coefficients) {
+  return std::all_of(coefficients.begin(), coefficients.end(), [](double c) { return std::isfinite(c); }) &&
+         std::any_of(coefficients.begin(), coefficients.end(), [](double c) { return c != 0.0; });
 }
+
+}  // namespace
 
 Expected<Design> matched_pole_zero(const std::vector<double>& zeros_s, const std::vector<double>& poles_s,
                                    double gain, double period_s) {
@@ -115,46 +102,29 @@ Expected<Design> matched_pole_zero(const std::vector<double>& zeros_s, const std
   d.zeros_s = zeros_s;
   d.poles_s = poles_s;
   d.gain_s = gain;
-
-  // z = e^{sT} for every finite zero and pole; zeros at s = infinity go to z = -1.
-  std::vector<double> zeros_z;
-  std::vector<double> poles_z;
-  for (double z : zeros_s) zeros_z.push_back(at_origin(z) ? 1.0 : std::exp(z * period_s));
-  for (double p : poles_s) poles_z.push_back(at_origin(p) ? 1.0 : std::exp(p * period_s));
-  const std::size_t zeros_at_infinity = poles_s.size() - zeros_s.size();
-  for (std::size_t i = 0; i < zeros_at_infinity; ++i) zeros_z.push_back(-1.0);
-
-  // Gain: with k = (poles at 0) - (zeros at 0), D(s) = s^-k D~(s) and D(z) = (z-1)^-k D~(z);
-  // match lim s^k D(s) = D~(0) with lim ((z-1)/T)^k D(z) = T^-k D~(z=1).
-  int k = 0;
-  double continuous = gain;  // D~(0) = K prod(-z_i) / prod(-p_j) over roots off the origin
-  double discrete = 1.0;     // D~(z=1) / K_d over the same roots and the zeros at z = -1
+  // z = e^{sT}, zeros at infinity -> z = -1, gain matched at low frequency: lode::math.
+  const lode::math::TransferFunction tf = lode::math::matched_pole_zero(zpk(zeros_s, poles_s, gain), period_s);
+  if (!usable(tf.num)) {
+    return Status::error("the matched gain is not finite (a pole or zero too close to the origin?)");
+  }
+  d.num = tf.num;
+  d.den = tf.den;
+  // For describe(): k = (poles at 0) - (zeros at 0) and lim s^k D(s), which the gain matches.
+  d.low_frequency_gain = gain;
   for (double z : zeros_s) {
     if (at_origin(z)) {
-      --k;
+      --d.origin_order;
     } else {
-      continuous *= -z;
-      discrete *= 1.0 - std::exp(z * period_s);
+      d.low_frequency_gain *= -z;
     }
   }
   for (double p : poles_s) {
     if (at_origin(p)) {
-      ++k;
+      ++d.origin_order;
     } else {
-      continuous /= -p;
-      discrete /= 1.0 - std::exp(p * period_s);
+      d.low_frequency_gain /= -p;
     }
   }
-  discrete *= std::pow(2.0, static_cast<double>(zeros_at_infinity));
-  const double discrete_gain = continuous * std::pow(period_s, k) / discrete;
-  if (!std::isfinite(discrete_gain) || discrete_gain == 0.0) {
-    return Status::error("the matched gain is not finite (a pole or zero too close to the origin?)");
-  }
-  d.origin_order = k;
-  d.low_frequency_gain = continuous;
-  d.num = poly_from_roots(zeros_z);
-  for (double& c : d.num) c *= discrete_gain;
-  d.den = poly_from_roots(poles_z);
   return d;
 }
 
@@ -173,26 +143,19 @@ Expected<Design> tustin(const std::vector<double>& zeros_s, const std::vector<do
   d.gain_s = gain;
   d.prewarp_hz = prewarp_hz;
 
-  // s = c (z-1)/(z+1): (s - a) = (c - a)(z - (c+a)/(c-a)) / (z + 1).
+  // s = c (z-1)/(z+1) maps a root at s = c to z = infinity: refuse it before lode::math::tustin.
   const double w = 2.0 * std::numbers::pi * prewarp_hz;
   const double c = prewarp_hz > 0.0 ? w / std::tan(0.5 * w * period_s) : 2.0 / period_s;
-  double discrete_gain = gain;
-  std::vector<double> zeros_z;
-  std::vector<double> poles_z;
   for (double z : zeros_s) {
     if (std::abs(c - z) <= 1e-12 * c) return Status::error("a zero at s = c = " + number_text(c) + " maps to z = infinity");
-    zeros_z.push_back((c + z) / (c - z));
-    discrete_gain *= c - z;
   }
   for (double p : poles_s) {
     if (std::abs(c - p) <= 1e-12 * c) return Status::error("a pole at s = c = " + number_text(c) + " maps to z = infinity");
-    poles_z.push_back((c + p) / (c - p));
-    discrete_gain /= c - p;
   }
-  for (std::size_t i = zeros_s.size(); i < poles_s.size(); ++i) zeros_z.push_back(-1.0);
-  d.num = poly_from_roots(zeros_z);
-  for (double& coefficient : d.num) coefficient *= discrete_gain;
-  d.den = poly_from_roots(poles_z);
+  const lode::math::TransferFunction tf = lode::math::tustin(
+      zpk(zeros_s, poles_s, gain), period_s, prewarp_hz > 0.0 ? std::optional<double>(w) : std::nullopt);
+  d.num = tf.num;
+  d.den = tf.den;
   return d;
 }
 

@@ -11,7 +11,8 @@
 // @endsystem
 //
 // Each axis is either D(s) = K prod(s - z_i) / prod(s - p_j) (real zeros/poles in rad/s)
-// discretised at the block's rate, or D(z) = num(z)/den(z) given directly (descending powers).
+// discretised at the block's rate by the shared lode::math::matched_pole_zero / lode::math::tustin
+// (core/src/math), or D(z) = num(z)/den(z) given directly (descending powers).
 //   matched pole-zero: z = e^{sT} for every zero and pole; the n - m zeros at s = infinity go
 //     to z = -1 (Franklin, Powell & Workman, Digital Control §6.3.3); with k = (poles at s = 0)
 //     - (zeros at s = 0) the gain matches lim s^k D(s) = lim ((z-1)/T)^k D(z) (k = 0: DC gain;
@@ -36,6 +37,7 @@
 #include <vector>
 
 #include "lode/block.hpp"
+#include "lode/math/discretize.hpp"
 
 namespace lode::plugins {
 
@@ -71,15 +73,13 @@ struct Design {
   [[nodiscard]] std::complex<double> evaluate(std::complex<double> z) const;
 };
 
-/// Monic polynomial (descending powers) with the given real roots.
-std::vector<double> poly_from_roots(const std::vector<double>& roots);
-
 /// Roots of a polynomial in descending powers (leading zeros ignored), via the companion matrix.
-std::vector<std::complex<double>> poly_roots(const std::vector<double>& coefficients);
+using lode::math::poly_roots;
 
+/// lode::math::matched_pole_zero with this block's checks and bookkeeping for describe().
 Expected<Design> matched_pole_zero(const std::vector<double>& zeros_s, const std::vector<double>& poles_s,
                                    double gain, double period_s);
-/// prewarp_hz = 0: plain Tustin (c = 2/T).
+/// lode::math::tustin (root by root); prewarp_hz = 0: plain Tustin (c = 2/T).
 Expected<Design> tustin(const std::vector<double>& zeros_s, const std::vector<double>& poles_s,
                         double gain, double period_s, double prewarp_hz);
 Expected<Design> direct(const std::vector<double>& num_z, const std::vector<double>& den_z);

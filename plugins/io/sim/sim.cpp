@@ -121,7 +121,8 @@ Status SimBoard::configure(ConfigureContext& ctx) {
   // --- ports and buffers ------------------------------------------------------------------
   // Declared even when something above failed, so that the pipeline reports the real
   // problem and not a missing port on top of it.
-  ctx.declare_input(command_, "command", plant_inputs, true);
+  // A plant without actuators (e.g. a stage moved by its own trajectory) has no DAC side.
+  if (!plant_ || !plant_inputs.empty()) ctx.declare_input(command_, "command", plant_inputs, true);
   if (plant_) {
     ctx.declare_output(truth_, "truth", plant_outputs);
     ctx.declare_output(plant_state_, "plant_state", plant_->state_elements());

@@ -49,11 +49,19 @@ struct Zpk {
 /// Monic polynomial with these roots (real coefficients; complex roots must come in pairs).
 std::vector<double> poly_from_roots(const std::vector<std::complex<double>>& roots);
 
+/// Roots of a polynomial in descending powers (leading zeros ignored): the eigenvalues of its
+/// companion matrix, sorted by descending real part, then descending imaginary part.
+std::vector<std::complex<double>> poly_roots(const std::vector<double>& coefficients);
+
 /// Bilinear (Tustin) transform s = (2/T)(z-1)/(z+1); with prewarp w [rad/s] the scale is
 /// w / tan(w T / 2), so the discrete response equals the continuous one exactly at w.
 /// The result is normalised so den[0] = 1.
 TransferFunction tustin(const TransferFunction& continuous, double T,
                         std::optional<double> prewarp_rad_s = std::nullopt);
+/// The same map applied root by root, (s - a) -> (c - a)(z - (c+a)/(c-a))/(z + 1) with
+/// c = 2/T or w/tan(wT/2); zeros at s = infinity go to z = -1. Better conditioned than the
+/// coefficient form for high orders. num carries the gain, den[0] = 1.
+TransferFunction tustin(const Zpk& continuous, double T, std::optional<double> prewarp_rad_s = std::nullopt);
 
 /// Matched pole-zero: z = e^{sT} for every pole and zero; zeros at infinity (fewer finite
 /// zeros than poles) map to z = -1; the gain matches the DC gain, or, with k poles at the
@@ -63,5 +71,8 @@ TransferFunction matched_pole_zero(const Zpk& continuous, double T);
 
 /// Frequency response of a discrete transfer function at w [rad/s] with sample time T.
 std::complex<double> discrete_response(const TransferFunction& tf, double w_rad_s, double T);
+
+/// Frequency response of a continuous transfer function at s = j w [rad/s].
+std::complex<double> continuous_response(const TransferFunction& tf, double w_rad_s);
 
 }  // namespace lode::math

@@ -11,8 +11,26 @@ namespace lode::math {
 ///   P = A'PA - (A'PB + N)(R + B'PB)^-1 (B'PA + N') + Q
 /// (N optional cross weight). Fails with a message when (A, B) is not stabilisable, the
 /// solution is not found to `tolerance`, or R + B'PB is not positive definite.
+/// Method (core/src/math/riccati.cpp): states balanced by powers of two, structured doubling
+/// until the relative change of P is <= `tolerance`, Newton-Hewer from a stabilising gain if
+/// the doubling result does not stabilise (Q blind to an unstable mode), then Newton defect
+/// correction; accepted when A - BK is stable and the relative residual (DareSolution) is
+/// <= 1e3 max(tolerance, 64 eps). R must be positive definite.
 Expected<Matrix> solve_dare(const Matrix& A, const Matrix& B, const Matrix& Q, const Matrix& R,
                             const Matrix* N = nullptr, double tolerance = 1e-12);
+
+/// solve_dare() with the figures of merit of the solve (for tests and describe()).
+struct DareSolution {
+  Matrix P;
+  /// ||residual||_F / (||P||_F + ||A'PA||_F + ||(A'PB+N)(R+B'PB)^-1(B'PA+N')||_F + ||Q||_F):
+  /// a backward error, of the order of the machine epsilon for a well-solved equation.
+  double relative_residual = 0.0;
+  int doubling_steps = 0;     ///< structured-doubling iterations
+  int newton_steps = 0;       ///< Newton defect-correction steps accepted afterwards
+  double spectral_radius = 0.0;  ///< of the closed loop A - B K (< 1: stabilising)
+};
+Expected<DareSolution> solve_dare_detailed(const Matrix& A, const Matrix& B, const Matrix& Q, const Matrix& R,
+                                           const Matrix* N = nullptr, double tolerance = 1e-12);
 
 /// Discrete LQ regulator u = -K x minimising sum x'Qx + u'Ru (+ 2x'Nu).
 struct Lqr {

@@ -1,0 +1,121 @@
+// filter.notch: second-order digital notch per channel, designed from (f_notch, k, zeta, fs) by
+// Tustin prewarped at f_notch, or given as raw coefficients (Silva-Rivas & Kim 2013, eqs. 31-34;
+// spec seed-003 §4).
+//
+// @system
+// name: filter.notch
+// input_ports:
+//   in:  n elements, any names/units      # e.g. hall.pose: x [m], y [m], phi [rad]
+// output_ports:
+//   out: n elements, the same names and units
+// @endsystem
+//
+// Analog forms, w = 2 pi f_notch:
+//   eq31  (default, the paper's eq. 31):  H(s) = (k s^2 + w0^2) / (s^2 + 2 zeta w0 s + w0^2),
+//         w0 = w sqrt(k) (eq. 33, from the null condition eq. 32: -k w^2 + w0^2 = 0): an exact
+//         null at f_notch, DC gain 1, high-frequency gain k (k = 0.1: -20 dB). Its poles sit at
+//         w0 (15.8 Hz for 50 Hz, k = 0.1): a low-pass with a null, not a narrow notch (§4.1).
+//   depth (the textbook notch):  H(s) = (s^2 + 2 k zeta w s + w^2) / (s^2 + 2 zeta w s + w^2):
+//         gain k at f_notch, 1 at DC and at high frequency, width set by zeta.
+// Discretised by the bilinear transform prewarped at w (lode::math::tustin):
+//   s = c (z - 1)/(z + 1), c = w / tan(w T / 2), so H(e^{jwT}) = H(jw) exactly at f_notch.
+// For eq31 this is the spec's closed form (§4.3): Kp = c, b0 = b2 = k Kp^2 + w0^2,
+// b1 = 2 w0^2 - 2 k Kp^2, a0 = Kp^2 + 2 zeta w0 Kp + w0^2, a1 = 2 w0^2 - 2 Kp^2,
+// a2 = Kp^2 - 2 zeta w0 Kp + w0^2, all divided by a0; DC gain exactly 1.
+// Or raw coefficients [b0, b1, b2, a1, a2] (a0 = 1), e.g. the printed eq. 34.
+// Each channel runs the transposed direct form II
+//   y = b0 x + s1,  s1 <- b1 x - a1 y + s2,  s2 <- b2 x - a2 y.
+// Channels not listed in `channels` pass through. set_enabled(false) bypasses the filter
+// (out = in) at run time; the sections keep filtering in the background so that re-enabling
+// continues from a settled state instead of a stale one.
+//
+// Threads: configure()/activate()/describe() on the loader thread, step() on the RT thread;
+// set_enabled() from any thread (atomic flags).
+#pragma once
+
+#include <atomic>
+#include <cmath>
+#include <cstddef>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "lode/block.hpp"
+
+namespace lode::plugins {
+
+namespace notch {
+
+enum class Form { eq31, depth, coefficients };
+const char* to_string(Form form);
+
+/// H(z) = (b0 + b1 z^-1 + b2 z^-2) / (1 + a1 z^-1 + a2 z^-2).
+struct Coefficients {
+  double b0 = 1.0, b1 = 0.0, b2 = 0.0, a1 = 0.0, a2 = 0.0;
+};
+
+/// Prewarped-Tustin design of the eq31 or depth form at rate_hz (configure time).
+Coefficients design(Form form, double f_notch_hz, double k, double zeta, double rate_hz);
+
+/// One channel's transposed direct form II section.
+class Section {
+ public:
+  void configure(const Coefficients& c) { c_ = c; reset(); }
+  void reset() noexcept { s1_ = 0.0; s2_ = 0.0; }
+  /// y for input x; returns false (state unchanged) if the result is not finite.
+  bool step(double x, double& y) noexcept {
+    const double out = c_.b0 * x + s1_;
+    const double s1 = c_.b1 * x - c_.a1 * out + s2_;
+    const double s2 = c_.b2 * x - c_.a2 * out;
+    if (!std::isfinite(out) || !std::isfinite(s1) || !std::isfinite(s2)) return false;
+    s1_ = s1;
+    s2_ = s2;
+    y = out;
+    return true;
+  }
+  [[nodiscard]] const Coefficients& coefficients() const { return c_; }
+
+ private:
+  Coefficients c_;
+  double s1_ = 0.0;
+  double s2_ = 0.0;
+};
+
+/// Per channel: what it was designed from (for describe()).
+struct ChannelDesign {
+  bool filtered = false;
+  Form form = Form::eq31;
+  double f_notch_hz = 0.0;
+  double k = 0.0;
+  double zeta = 0.0;
+};
+
+}  // namespace notch
+
+class NotchFilter final : public Block {
+ public:
+  Status configure(ConfigureContext& ctx) override;
+  Status activate() override;
+  StepStatus step(const Tick& tick) noexcept override;
+  void describe(Json& out) const override;
+
+  /// Enable (filter) or bypass (out = in) every filtered channel. Any thread, RT-safe.
+  void set_enabled(bool enabled) noexcept;
+  /// The same for one channel (index into the input); false if it is not a filtered channel.
+  bool set_enabled(std::size_t channel, bool enabled) noexcept;
+  [[nodiscard]] bool enabled(std::size_t channel) const noexcept;
+
+ private:
+  double rate_hz_ = 0.0;
+  std::size_t channels_ = 0;
+  Elements elements_;
+  std::vector<notch::ChannelDesign> designs_;
+  std::vector<notch::Section> sections_;               ///< one per channel, sized in configure()
+  std::unique_ptr<std::atomic<bool>[]> enabled_;      ///< one per channel
+  std::vector<double> filtered_value_;                  ///< this cycle's section outputs
+
+  InputPort in_;
+  OutputPort out_;
+};
+
+}  // namespace lode::plugins

@@ -1,0 +1,296 @@
+// filter.notch: the spec's reference coefficients (seed-003 §4.3) and the printed eq. 34's
+// properties (§4.2), the measured frequency response against the design and the analog
+// eq. 31, a 50 Hz line removed from a signal, the depth form, per-channel selection and the
+// run-time bypass, configuration errors, faults and no allocation.
+#include "notch.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <complex>
+#include <cstdio>
+#include <limits>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include "lode/math/discretize.hpp"
+#include "lode/testing/allocation_counter.hpp"
+#include "lode/testing/harness.hpp"
+
+namespace lode::plugins {
+namespace {
+
+using lode::testing::BlockHarness;
+
+constexpr double kPi = std::numbers::pi;
+const Elements kPlanar{{"x", "m"}, {"y", "m"}, {"phi", "rad"}};
+
+const Json& member(const Json& j, const std::string& key) {
+  const Json* m = j.find(key);
+  if (m == nullptr) {
+    static const Json null;
+    ADD_FAILURE() << "describe() has no '" << key << "'";
+    return null;
+  }
+  return *m;
+}
+
+std::vector<double> numbers_of(const Json& array) {
+  std::vector<double> out;
+  for (const Json& e : array.elements()) out.push_back(e.as_number());
+  return out;
+}
+
+/// Amplitude and phase of the f_hz component of y[k] (sampled at rate_hz) by least squares
+/// on sin/cos over the samples.
+std::complex<double> component(const std::vector<double>& y, double f_hz, double rate_hz) {
+  double ss = 0, sc = 0, cc = 0, ys = 0, yc = 0;
+  for (std::size_t k = 0; k < y.size(); ++k) {
+    const double s = std::sin(2 * kPi * f_hz * static_cast<double>(k) / rate_hz);
+    const double c = std::cos(2 * kPi * f_hz * static_cast<double>(k) / rate_hz);
+    ss += s * s, sc += s * c, cc += c * c, ys += y[k] * s, yc += y[k] * c;
+  }
+  const double det = ss * cc - sc * sc;
+  const double a = (ys * cc - yc * sc) / det;  // y ~ a sin + b cos
+  const double b = (yc * ss - ys * sc) / det;
+  return {a, b};  // a sin + b cos = Im((a + jb) e^{jwt})... amplitude |a + jb|
+}
+
+/// The 1-channel filter's steady-state gain at f_hz, measured by running a sine through it.
+double measured_gain(BlockHarness& h, double f_hz, double rate_hz) {
+  EXPECT_TRUE(h.activate());
+  const auto in = h.input("in");
+  std::vector<double> out;
+  const int settle = static_cast<int>(rate_hz);  // 1 s: the slowest poles (|z| ~ 0.9) are long settled
+  for (int k = 0; k < settle + 4 * static_cast<int>(rate_hz); ++k) {
+    in[0] = std::sin(2 * kPi * f_hz * k / rate_hz);
+    EXPECT_EQ(h.step(), StepStatus::ok);
+    if (k >= settle) out.push_back(h.output("out")[0]);
+  }
+  return std::abs(component(out, f_hz, rate_hz));
+}
+
+// --- coefficients -------------------------------------------------------------------------
+
+TEST(FilterNotch, Seed003ReferenceCoefficients) {
+  // Spec §4.3: zeta 0.5, k 0.1, f_notch 50 Hz, Tustin prewarped at 50 Hz, 6 decimals.
+  struct Row {
+    double fs, b0, b1, a1, a2;
+  };
+  const Row table[] = {{800.0, 0.097442, -0.180049, -1.867246, 0.882081},
+                       {834.2, 0.097408, -0.181163, -1.873066, 0.886719},
+                       {1000.0, 0.097387, -0.185240, -1.895301, 0.904834},
+                       {2000.0, 0.098117, -0.193817, -1.949047, 0.951463}};
+  for (const Row& row : table) {
+    BlockHarness h("filter.notch", "f_notch_hz: 50\nk: 0.1\nzeta: 0.5\n", row.fs);
+    h.feed("in", kPlanar);
+    ASSERT_TRUE(h.configure()) << h.diagnostics();
+    const Json d = h.describe();
+    const Json& x = member(d, "channels").elements().at(0);
+    const std::vector<double> b = numbers_of(member(x, "b"));
+    const std::vector<double> a = numbers_of(member(x, "a"));
+    std::printf("fs %6.1f Hz: b = [%.6f, %.6f, %.6f], a = [1, %.6f, %.6f]\n", row.fs, b[0], b[1], b[2], a[1], a[2]);
+    EXPECT_NEAR(b[0], row.b0, 6e-7);
+    EXPECT_NEAR(b[1], row.b1, 6e-7);
+    EXPECT_NEAR(b[2], row.b0, 6e-7);
+    EXPECT_NEAR(a[1], row.a1, 6e-7);
+    EXPECT_NEAR(a[2], row.a2, 6e-7);
+    // "All four give: DC gain 0 dB, an exact null at 50 Hz, and -20.0 dB at Nyquist."
+    EXPECT_NEAR(member(x, "dc_gain").as_number(), 1.0, 1e-12);
+    EXPECT_NEAR(member(x, "nyquist_gain").as_number(), 0.1, 1e-12);
+    EXPECT_LT(member(x, "gain_at_f_notch_db").as_number(), -200.0);
+    EXPECT_NEAR(member(x, "zero_frequency_hz").as_number(), 50.0, 1e-9);
+    EXPECT_NEAR(member(x, "zero_radius").as_number(), 1.0, 1e-12);
+  }
+}
+
+TEST(FilterNotch, PrintedEq34PropertiesAt800Hz) {
+  // Spec §4.2: DC gain 1.028, Nyquist gain 0.1000, zeros at +-0.3766 rad (47.95 Hz at 800 Hz),
+  // poles of radius 0.8971 at +-0.0484 rad.
+  BlockHarness h("filter.notch", "coefficients: [0.09318, -0.1733, 0.09318, -1.792, 0.8047]\n", 800.0);
+  h.feed("in", kPlanar);
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  const Json d = h.describe();
+  const Json& x = member(d, "channels").elements().at(0);
+  EXPECT_EQ(member(x, "form").as_string(), "coefficients");
+  EXPECT_NEAR(member(x, "dc_gain").as_number(), 1.028, 0.0005);
+  EXPECT_NEAR(member(x, "nyquist_gain").as_number(), 0.1000, 0.00005);
+  EXPECT_NEAR(member(x, "zero_angle_rad").as_number(), 0.3766, 0.00005);
+  EXPECT_NEAR(member(x, "zero_frequency_hz").as_number(), 47.95, 0.005);
+  EXPECT_NEAR(member(x, "pole_radius").as_number(), 0.8971, 0.00005);
+  EXPECT_NEAR(member(x, "pole_angle_rad").as_number(), 0.0484, 0.00005);
+}
+
+// --- frequency response -------------------------------------------------------------------
+
+TEST(FilterNotch, MeasuredResponseFollowsTheDesignAndTheAnalogEq31) {
+  const double fs = 800.0;
+  BlockHarness h("filter.notch", "f_notch_hz: 50\n", fs);
+  h.feed("in", {{"x", "m"}});
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  const Json d = h.describe();
+  const Json& x = member(d, "channels").elements().at(0);
+  const std::vector<double> b = numbers_of(member(x, "b"));
+  const std::vector<double> a = numbers_of(member(x, "a"));
+  const lode::math::TransferFunction digital{b, a};
+  const double w0 = 2 * kPi * 50 * std::sqrt(0.1);
+  const lode::math::TransferFunction analog{{0.1, 0.0, w0 * w0}, {1.0, w0, w0 * w0}};
+  // Spec §4.1, the analog eq. 31 with zeta = 0.5 (printed to 0.1 dB).
+  struct Point {
+    double f_hz, printed_db;
+  };
+  const Point points[] = {{5, 0.32}, {10, 0.84}, {15.8, -0.91}, {20, -4.4}, {30, -14.0},
+                          {40, -24.4}, {60, -30.0}, {100, -22.4}, {200, -20.5}};
+  std::printf("   f [Hz]  measured dB  design dB  analog dB  printed dB\n");
+  for (const Point& p : points) {
+    const double measured = 20 * std::log10(measured_gain(h, p.f_hz, fs));
+    const double design = 20 * std::log10(std::abs(lode::math::discrete_response(digital, 2 * kPi * p.f_hz, 1 / fs)));
+    const double continuous = 20 * std::log10(std::abs(lode::math::continuous_response(analog, 2 * kPi * p.f_hz)));
+    std::printf("  %7.1f  %11.4f  %9.4f  %9.4f  %10.2f\n", p.f_hz, measured, design, continuous, p.printed_db);
+    EXPECT_NEAR(measured, design, 1e-6) << p.f_hz << " Hz";
+    EXPECT_NEAR(continuous, p.printed_db, 0.051) << "the analog eq. 31 reproduces the spec's table";
+    // Tustin warps frequencies away from 50 Hz: within 0.5 dB of the analog filter to 100 Hz.
+    if (p.f_hz <= 100) {
+      EXPECT_NEAR(measured, continuous, 0.5) << p.f_hz << " Hz";
+    }
+  }
+}
+
+TEST(FilterNotch, RemovesA50HzLineFromASignal) {
+  // 20 um of 50 Hz on a 2 Hz, 1 um motion (x, y); phi is not in `channels` and passes through.
+  const double fs = 800.0;
+  BlockHarness h("filter.notch", "f_notch_hz: 50\nchannels: [x, y]\n", fs);
+  h.feed("in", kPlanar);
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  const auto in = h.input("in");
+  std::vector<double> x_in, x_out, phi_in, phi_out;
+  for (int k = 0; k < 3 * static_cast<int>(fs); ++k) {
+    const double t = k / fs;
+    const double line = 20e-6 * std::sin(2 * kPi * 50 * t + 0.3);
+    in[0] = 1e-6 * std::sin(2 * kPi * 2 * t) + line;
+    in[1] = line;
+    in[2] = line;
+    ASSERT_EQ(h.step(), StepStatus::ok);
+    if (k >= static_cast<int>(fs)) {  // after 1 s
+      x_in.push_back(in[0]);
+      x_out.push_back(h.output("out")[0]);
+      phi_out.push_back(h.output("out")[2]);
+      phi_in.push_back(in[2]);
+    }
+  }
+  const double line_in = std::abs(component(x_in, 50, fs));
+  const double line_out = std::abs(component(x_out, 50, fs));
+  const double attenuation_db = 20 * std::log10(line_out / line_in);
+  std::printf("50 Hz line: %.3g m in, %.3g m out (%.1f dB)\n", line_in, line_out, attenuation_db);
+  EXPECT_LT(attenuation_db, -40.0) << "spec §6.1: notch output at the noise floor at 50 Hz (>= 40 dB down)";
+  EXPECT_LT(attenuation_db, -150.0) << "the prewarped design puts an exact null at 50 Hz";
+  const double motion_gain = std::abs(component(x_out, 2, fs)) / std::abs(component(x_in, 2, fs));
+  const Json d = h.describe();
+  const Json& x = member(d, "channels").elements().at(0);
+  const lode::math::TransferFunction design{numbers_of(member(x, "b")), numbers_of(member(x, "a"))};
+  EXPECT_NEAR(motion_gain, std::abs(lode::math::discrete_response(design, 2 * kPi * 2, 1 / fs)), 1e-6)
+      << "the 2 Hz motion passes with the design's gain (+0.05 dB: eq. 31 peaks slightly below w0)";
+  EXPECT_NEAR(20 * std::log10(motion_gain), 0.0, 0.1);
+  for (std::size_t k = 0; k < phi_in.size(); ++k) ASSERT_EQ(phi_out[k], phi_in[k]);
+}
+
+TEST(FilterNotch, DepthFormHasGainKAtTheNotchAndOneElsewhere) {
+  const double fs = 1000.0;
+  BlockHarness h("filter.notch", "form: depth\nf_notch_hz: 120\nk: 0.05\nzeta: 0.2\n", fs);
+  h.feed("in", {{"v", "V"}});
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  const Json d = h.describe();
+  const Json& v = member(d, "channels").elements().at(0);
+  EXPECT_NEAR(member(v, "gain_at_f_notch_db").as_number(), 20 * std::log10(0.05), 1e-9);
+  EXPECT_NEAR(member(v, "dc_gain").as_number(), 1.0, 1e-12);
+  EXPECT_NEAR(member(v, "nyquist_gain").as_number(), 1.0, 1e-12);
+  EXPECT_NEAR(measured_gain(h, 120, fs), 0.05, 1e-6);
+  EXPECT_GT(measured_gain(h, 20, fs), 0.99);
+}
+
+// --- selection and bypass -----------------------------------------------------------------
+
+TEST(FilterNotch, RunTimeBypassIsExactAndReEnablingHasNoTransient) {
+  const double fs = 800.0;
+  BlockHarness switched("filter.notch", "f_notch_hz: 50\nchannels: [x]\n", fs);
+  BlockHarness always("filter.notch", "f_notch_hz: 50\nchannels: [x]\n", fs);
+  for (BlockHarness* h : {&switched, &always}) {
+    h->feed("in", kPlanar);
+    ASSERT_TRUE(h->configure()) << h->diagnostics();
+    ASSERT_TRUE(h->activate());
+  }
+  auto& notch = dynamic_cast<NotchFilter&>(switched.block());
+  EXPECT_FALSE(notch.set_enabled(std::size_t{2}, true)) << "phi is not a filtered channel";
+  EXPECT_TRUE(notch.enabled(0));
+  const auto in_switched = switched.input("in");
+  const auto in_always = always.input("in");
+  for (int k = 0; k < 1200; ++k) {
+    if (k == 400) notch.set_enabled(false);
+    if (k == 800) notch.set_enabled(true);
+    const double value = 1e-5 * std::sin(2 * kPi * 50 * k / fs) + 1e-6 * std::sin(2 * kPi * 3 * k / fs);
+    in_switched[0] = in_always[0] = value;
+    ASSERT_EQ(switched.step(), StepStatus::ok);
+    ASSERT_EQ(always.step(), StepStatus::ok);
+    if (k >= 400 && k < 800) {
+      ASSERT_EQ(switched.output("out")[0], value) << "bypassed: out = in";
+    } else {
+      ASSERT_EQ(switched.output("out")[0], always.output("out")[0]) << "cycle " << k;
+    }
+  }
+
+  BlockHarness off("filter.notch", "f_notch_hz: 50\nenabled: false\n", fs);
+  off.feed("in", kPlanar);
+  ASSERT_TRUE(off.configure()) << off.diagnostics();
+  ASSERT_TRUE(off.activate());
+  off.input("in")[1] = 3.0;
+  ASSERT_EQ(off.step(), StepStatus::ok);
+  EXPECT_EQ(off.output("out")[1], 3.0);
+}
+
+// --- errors, faults, allocation -----------------------------------------------------------
+
+void expect_error(const std::string& yaml, const std::string& fragment) {
+  BlockHarness h("filter.notch", yaml, 800.0);
+  h.feed("in", kPlanar);
+  EXPECT_FALSE(h.configure()) << yaml;
+  EXPECT_NE(h.diagnostics().find(fragment), std::string::npos) << "expected '" << fragment << "' in:\n"
+                                                                << h.diagnostics();
+}
+
+TEST(FilterNotch, ConfigurationErrorsSayWhatIsWrong) {
+  expect_error("f_notch_hz: 400\n", "below Nyquist");
+  expect_error("zeta: 0.5\n", "notch frequency [Hz] is required");
+  expect_error("f_notch_hz: 50\ncoefficients: [1, 0, 0, 0, 0]\n", "not both");
+  expect_error("coefficients: [1, 0, 0, -2.1, 1.2]\n", "unstable denominator");
+  expect_error("coefficients: [1, 0, 0, 0]\n", "expected 5 numbers");
+  expect_error("f_notch_hz: 50\nk: [0.1, 0.2]\n", "one per filtered channel");
+  expect_error("f_notch_hz: 50\nk: 0\n", "must be > 0");
+  expect_error("f_notch_hz: 50\nchannels: [x, z]\n", "'z' is not an element");
+  expect_error("f_notch_hz: 50\nform: wide\n", "form");
+}
+
+TEST(FilterNotch, FaultsOnNonFiniteInputAndDoesNotAllocate) {
+  BlockHarness h("filter.notch", "f_notch_hz: [50, 50, 60]\n", 800.0);
+  h.feed("in", kPlanar);
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  const auto in = h.input("in");
+  const std::size_t before = lode::testing::allocation_count();
+  for (int k = 0; k < 20000; ++k) {
+    in[0] = std::sin(0.3 * k);
+    ASSERT_EQ(h.step(), StepStatus::ok);
+  }
+  if (lode::testing::allocation_counting_available()) {
+    EXPECT_EQ(lode::testing::allocation_count() - before, 0u);
+  }
+  const double previous = h.output("out")[0];
+  in[1] = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(h.step(), StepStatus::fault);
+  EXPECT_STREQ(h.block().fault_reason(), "non-finite input");
+  EXPECT_EQ(h.output("out")[0], previous) << "a fault writes nothing";
+}
+
+}  // namespace
+}  // namespace lode::plugins
