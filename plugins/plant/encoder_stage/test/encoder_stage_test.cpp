@@ -124,7 +124,6 @@ const char* kModels =
 TEST(EncoderStageYaml, IoSimPublishesTheTrajectoryAtEverySample) {
   lode::testing::BlockHarness h("io.sim", "plant: axis\nsensors: head\nnoise_std_v: 0\nadc_bits: 0\n", 20000.0,
                                 kModels);
-  h.feed("command", {{"unused", "1"}});
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   ASSERT_TRUE(h.activate());
   const double w = kTwoPi * 5.0;

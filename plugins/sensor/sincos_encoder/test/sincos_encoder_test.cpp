@@ -156,7 +156,6 @@ TEST(SincosEncoderYaml, ConfiguresFromYamlLikeTheDirectConfig) {
                                 "axis: {plugin: plant.encoder_stage, offset_m: 1.0e-6}\n"
                                 "head: {plugin: sensor.sincos_encoder, pitch_m: 4.0e-6, amplitude_v: 2.0,\n"
                                 "       channels: [a, b], offset_v: [0.1, -0.1]}\n");
-  h.feed("command", {{"unused", "1"}});
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   ASSERT_TRUE(h.activate());
   ASSERT_EQ(h.step(), lode::StepStatus::ok);
