@@ -1,0 +1,52 @@
+// estimator.ekf: extended Kalman filter over a plugin process model and a plugin measurement
+// model, additive noise (seed 002's comparator, Fig. 19; spec seed-002-hall-ukf.md §3.8).
+//
+// @system
+// name: estimator.ekf
+// input_ports:
+//   measurement: >= m elements; the measurement model's channels by name  # e.g. hall_direct.gap: gap [m]
+//   input:       >= nu elements; the process inputs by name (u_{k-1})      # e.g. stage.truth: coil_voltage [V]
+// output_ports:
+//   state:      n, the process state elements       # x_{k|k}
+//   std:        n, same names and units              # sqrt(diag P_{k|k})
+//   innovation: m, the measurement channels          # y_k - h(x_{k|k-1})
+// @endsystem
+//
+// Time update:         x^- = f(x, u_{k-1}),   P^- = F P F' + Q_k,   F = df/dx at (x, u_{k-1})
+// Measurement update:  S = H P^- H' + R,  K = P^- H' S^-1,  x = x^- + K (y - h(x^-)),
+//                      P = (I - K H) P^- (I - K H)' + K R K'   (Joseph form: symmetric and
+//                      positive semidefinite for any gain, under rounding)
+// F is the process model's analytic Jacobian when it has one (plant.suspension with the Euler
+// step: spec §3.8 with the mass), else central differences (jacobian: numerical forces them);
+// H comes from the measurement model's jacobian(), its columns mapped onto the process state.
+//
+// Threads: configure()/activate()/describe() on the loader thread, step() on the RT thread
+// (fixed-capacity Eigen storage: no allocation).
+#pragma once
+
+#include "../nonlinear_common/model_estimator.hpp"
+
+namespace lode::plugins {
+
+class ExtendedEstimator final : public nonlinear::ModelEstimator {
+ public:
+  enum class JacobianSource { automatic, analytic, numerical };
+
+  /// Whether the last prediction used the model's analytic Jacobian.
+  [[nodiscard]] bool used_analytic_jacobian() const { return used_analytic_; }
+  [[nodiscard]] const nonlinear::GainMatrix& gain() const { return gain_; }
+
+ protected:
+  void read_filter_params(Params& params) override;
+  Status prepare_filter(Params& params) override;
+  StepStatus filter_cycle(bool first) noexcept override;
+  void describe_filter(Json& out) const override;
+
+ private:
+  JacobianSource jacobian_ = JacobianSource::automatic;
+  bool model_has_jacobian_ = false;
+  bool used_analytic_ = false;
+  nonlinear::GainMatrix gain_;
+};
+
+}  // namespace lode::plugins

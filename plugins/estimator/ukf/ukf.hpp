@@ -1,0 +1,321 @@
+// estimator.ukf: unscented Kalman filter over a plugin process model and a plugin measurement
+// model, additive noise (seed 002, eq. 17-31; spec seed-002-hall-ukf.md §3).
+//
+// @system
+// name: estimator.ukf
+// input_ports:
+//   measurement: >= m elements; the measurement model's channels by name  # e.g. hall_direct.gap: gap [m]
+//   input:       >= nu elements; the process inputs by name (u_{k-1})      # e.g. stage.truth: coil_voltage [V]
+// output_ports:
+//   state:      n, the process state elements       # x_{k|k}, e.g. gap [m], velocity [m/s], current [A]
+//   std:        n, same names and units              # sqrt(diag P_{k|k})
+//   innovation: m, the measurement channels          # y_k - y^_{k|k-1}
+// @endsystem
+//
+// Sigma points and weights (eq. 20-21), L = n states, lambda = alpha^2 (L + kappa) - L:
+//   chi_0 = x,  chi_i = x + (sqrt((L+lambda) P))_i,  chi_{L+i} = x - (sqrt((L+lambda) P))_i
+//   W0m = lambda/(L+lambda),  W0c = W0m + 1 - alpha^2 + beta,  Wi = 1/(2(L+lambda))
+// with sqrt the lower Cholesky factor (column i). At the paper's alpha = 0.002, beta = 2,
+// kappa = 0, L = 3: W0m = -249999, W0c = -249996, Wi = 41666.67 (spec §3.3).
+// Time update (eq. 22-24): chi_i <- f(chi_i, u_{k-1}); x^- = sum W^m chi_i;
+//   P^- = sum W^c (chi_i - x^-)(chi_i - x^-)' + Q_k. The propagated points go through h
+// without being redrawn (eq. 25-26, the paper's form: Q_k then does not reach P_yy and P_xy);
+// redraw_after_prediction: true draws them again around (x^-, P^-), which makes the filter the
+// Kalman filter on a linear model. Measurement update (eq. 27-31):
+//   P_yy = sum W^c (Y_i - y^)(Y_i - y^)' + R,  P_xy = sum W^c (chi_i - x^-)(Y_i - y^)'
+//   K = P_xy P_yy^-1,  x = x^- + K (y - y^),  P = P^- - K P_yy K'.
+// Sums about the centre point (spec §3.3 hazard): with alpha = 0.002 the weights are ~1e5 with
+// opposite signs and the points sit 0.35 % of a sigma from the mean, so sum W_i chi_i on raw
+// values cancels catastrophically (in float: ~1.5 % of |x|). Every sum here is taken over
+// deviations d_i = chi_i - chi_0:  x^- = chi_0 + sum_{i>=1} Wi d_i  (sum W^m = 1 exactly), and
+//   P^- = W0c dbar dbar' + sum_{i>=1} Wi (d_i - dbar)(d_i - dbar)' + Q,  dbar = x^- - chi_0,
+// which is the same sum with every term O(spread) instead of O(|x|).
+//
+// Threads: configure()/activate()/describe() on the loader thread, step() on the RT thread
+// (fixed-capacity Eigen storage: no allocation).
+#pragma once
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <array>
+#include <cmath>
+#include <cstddef>
+
+#include "../nonlinear_common/model_estimator.hpp"
+
+namespace lode::plugins {
+
+namespace ukf {
+
+inline constexpr int kMaxPoints = 2 * nonlinear::kMaxStates + 1;
+
+/// The weights of eq. 21 for L states.
+struct Weights {
+  int states = 0;
+  double alpha = 1e-3;
+  double beta = 2.0;
+  double kappa = 0.0;
+  double lambda = 0.0;
+  double mean0 = 0.0;  ///< W0m
+  double cov0 = 0.0;   ///< W0c
+  double other = 0.0;  ///< Wi = W^m_i = W^c_i, i = 1..2L
+
+  static Weights make(int states, double alpha, double beta, double kappa) {
+    Weights w;
+    w.states = states;
+    w.alpha = alpha;
+    w.beta = beta;
+    w.kappa = kappa;
+    const double L = states;
+    w.lambda = alpha * alpha * (L + kappa) - L;
+    w.mean0 = w.lambda / (L + w.lambda);
+    w.cov0 = w.mean0 + (1.0 - alpha * alpha + beta);
+    w.other = 1.0 / (2.0 * (L + w.lambda));
+    return w;
+  }
+  /// L + lambda = alpha^2 (L + kappa): the squared spread of the points in sigmas.
+  [[nodiscard]] double spread() const { return states + lambda; }
+  [[nodiscard]] double mean_sum() const { return mean0 + 2.0 * states * other; }
+};
+
+/// How the weighted sums are formed (the block always uses about_centre; raw exists to show
+/// in the tests what the paper's literal sums cost in float).
+enum class Sums { about_centre, raw };
+
+/// The filter's algebra, templated on the scalar of its storage and arithmetic so that the
+/// tests can run it in float (the STM32F4's FPU) as well as in double. The models stay in
+/// double (lode's model interfaces are): `f(const double* x, double* x_next)` and
+/// `h(const double* x, double* y)`.
+///
+/// about_centre keeps the points as chi_0 plus deviations d_i = chi_i - chi_0 and never forms
+/// chi_0 + d_i in Scalar: at alpha = 0.002 a deviation is ~0.35 % of a sigma, which is a few
+/// float ulps of |x|, so even storing chi_i = x + d_i in float would lose it. The model is
+/// evaluated at double(chi_0) + double(d_i) and the propagated deviation f(chi_i) - f(chi_0)
+/// formed in double before it is stored. raw is the paper's literal form (absolute points,
+/// sums of W_i chi_i); with Scalar = double the two agree to rounding.
+template <typename Scalar>
+class UnscentedCore {
+ public:
+  using Vector = Eigen::Matrix<Scalar, Eigen::Dynamic, 1, 0, nonlinear::kMaxStates, 1>;
+  using Matrix = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, 0, nonlinear::kMaxStates, nonlinear::kMaxStates>;
+  using Points = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, 0, nonlinear::kMaxStates, kMaxPoints>;
+  using MVector = Eigen::Matrix<Scalar, Eigen::Dynamic, 1, 0, nonlinear::kMaxChannels, 1>;
+  using MMatrix =
+      Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, 0, nonlinear::kMaxChannels, nonlinear::kMaxChannels>;
+  using MPoints = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, 0, nonlinear::kMaxChannels, kMaxPoints>;
+  using Gain = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, 0, nonlinear::kMaxStates, nonlinear::kMaxChannels>;
+
+  /// `redraw`: draw the points again around (x^-, P^-) after the prediction, so that the
+  /// measurement update sees Q; false is the paper's eq. 25 (the propagated points go through h
+  /// as they are, spec §3.4), which leaves Q out of P_yy and P_xy.
+  void configure(int states, int channels, const Weights& weights, Sums sums = Sums::about_centre,
+                 bool redraw = false) {
+    redraw_ = redraw;
+    n_ = states;
+    m_ = channels;
+    sums_ = sums;
+    points_ = 2 * n_ + 1;
+    wm0_ = static_cast<Scalar>(weights.mean0);
+    wc0_ = static_cast<Scalar>(weights.cov0);
+    wi_ = static_cast<Scalar>(weights.other);
+    spread_ = static_cast<Scalar>(weights.spread());
+    x_.setZero(n_);
+    P_.setIdentity(n_, n_);
+    centre_.setZero(n_);
+    chi_.setZero(n_, points_);
+    y_centre_.setZero(m_);
+    upsilon_.setZero(m_, points_);
+    innovation_.setZero(m_);
+    y_hat_.setZero(m_);
+    gain_.setZero(n_, m_);
+  }
+
+  void set(const Vector& x, const Matrix& P) noexcept {
+    x_ = x;
+    P_ = P;
+  }
+
+  /// eq. 20: points around (x, P). False if (L + lambda) P is not positive definite.
+  bool draw() noexcept {
+    llt_.compute(spread_ * P_);
+    if (llt_.info() != Eigen::Success) return false;
+    const Matrix S = llt_.matrixL();
+    centre_ = x_;
+    chi_.col(0).setZero();
+    for (int i = 0; i < n_; ++i) {
+      chi_.col(1 + i) = S.col(i);
+      chi_.col(1 + n_ + i) = -S.col(i);
+    }
+    if (sums_ == Sums::raw) {  // absolute points
+      for (int i = 0; i < points_; ++i) chi_.col(i) += x_;
+    }
+    return chi_.allFinite();
+  }
+
+  /// eq. 22-24: push the points through f and form x^-, P^- (+ Q). The state is committed
+  /// only if finite; returns false otherwise.
+  template <class F>
+  bool predict(F&& f, const Matrix& Q) noexcept {
+    std::array<double, nonlinear::kMaxStates> x{}, base{}, next{};
+    if (sums_ == Sums::about_centre) {
+      for (int j = 0; j < n_; ++j) x[j] = static_cast<double>(centre_(j));
+      f(x.data(), base.data());
+      for (int i = 1; i < points_; ++i) {
+        for (int j = 0; j < n_; ++j) x[j] = static_cast<double>(centre_(j)) + static_cast<double>(chi_(j, i));
+        f(x.data(), next.data());
+        for (int j = 0; j < n_; ++j) chi_(j, i) = static_cast<Scalar>(next[j] - base[j]);
+      }
+      for (int j = 0; j < n_; ++j) centre_(j) = static_cast<Scalar>(base[j]);
+    } else {
+      for (int i = 0; i < points_; ++i) {
+        for (int j = 0; j < n_; ++j) x[j] = static_cast<double>(chi_(j, i));
+        f(x.data(), next.data());
+        for (int j = 0; j < n_; ++j) chi_(j, i) = static_cast<Scalar>(next[j]);
+      }
+    }
+    Vector mean;
+    Matrix cov;
+    moments(mean, cov);
+    cov += Q;
+    cov = (Scalar(0.5) * (cov + cov.transpose())).eval();
+    if (!mean.allFinite() || !cov.allFinite()) return false;
+    x_ = mean;
+    P_ = cov;
+    return redraw_ ? draw() : true;
+  }
+
+  /// eq. 25-31 with the current points (propagated, or drawn when there was no prediction).
+  template <class H>
+  bool update(H&& h, const MVector& y, const MMatrix& R) noexcept {
+    std::array<double, nonlinear::kMaxStates> x{};
+    std::array<double, nonlinear::kMaxChannels> base{}, out{};
+    MVector y_hat(m_);
+    Vector x_dev(n_);   // x^- relative to the centre point (about_centre) or x^- itself (raw)
+    MVector y_dev(m_);  // y^ relative to Y_0 (about_centre)
+    if (sums_ == Sums::about_centre) {
+      for (int j = 0; j < n_; ++j) x[j] = static_cast<double>(centre_(j));
+      h(x.data(), base.data());
+      upsilon_.col(0).setZero();
+      for (int i = 1; i < points_; ++i) {
+        for (int j = 0; j < n_; ++j) x[j] = static_cast<double>(centre_(j)) + static_cast<double>(chi_(j, i));
+        h(x.data(), out.data());
+        for (int c = 0; c < m_; ++c) upsilon_(c, i) = static_cast<Scalar>(out[c] - base[c]);
+      }
+      x_dev.setZero();
+      y_dev.setZero();
+      for (int i = 1; i < points_; ++i) {
+        x_dev += wi_ * chi_.col(i);
+        y_dev += wi_ * upsilon_.col(i);
+      }
+      for (int c = 0; c < m_; ++c) y_centre_(c) = static_cast<Scalar>(base[c]);
+      y_hat = y_centre_ + y_dev;
+    } else {
+      for (int i = 0; i < points_; ++i) {
+        for (int j = 0; j < n_; ++j) x[j] = static_cast<double>(chi_(j, i));
+        h(x.data(), out.data());
+        for (int c = 0; c < m_; ++c) upsilon_(c, i) = static_cast<Scalar>(out[c]);
+      }
+      y_hat = wm0_ * upsilon_.col(0);
+      for (int i = 1; i < points_; ++i) y_hat += wi_ * upsilon_.col(i);
+    }
+    MMatrix Pyy = R;
+    Gain Pxy = Gain::Zero(n_, m_);
+    for (int i = 0; i < points_; ++i) {
+      const Scalar w = i == 0 ? wc0_ : wi_;
+      // chi_i - x^- and Y_i - y^, from deviations (about_centre) or absolute values (raw).
+      const Vector dx = sums_ == Sums::about_centre ? Vector(chi_.col(i) - x_dev) : Vector(chi_.col(i) - x_);
+      const MVector dy =
+          sums_ == Sums::about_centre ? MVector(upsilon_.col(i) - y_dev) : MVector(upsilon_.col(i) - y_hat);
+      Pyy.noalias() += w * dy * dy.transpose();
+      Pxy.noalias() += w * dx * dy.transpose();
+    }
+    Pyy = (Scalar(0.5) * (Pyy + Pyy.transpose())).eval();
+    Eigen::LLT<MMatrix> pyy_llt(Pyy);
+    if (pyy_llt.info() != Eigen::Success) return false;
+    const Gain K = pyy_llt.solve(Pxy.transpose()).transpose();  // eq. 29
+    MVector innovation = y - y_hat;
+    if (sums_ == Sums::about_centre) innovation = (y - y_centre_) - y_dev;  // no cancellation of |y|
+    Vector x_new = x_ + K * innovation;                                      // eq. 30
+    Matrix P = P_;
+    P.noalias() -= K * Pyy * K.transpose();                                 // eq. 31
+    P = (Scalar(0.5) * (P + P.transpose())).eval();
+    if (!x_new.allFinite() || !P.allFinite()) return false;
+    x_ = x_new;
+    P_ = P;
+    innovation_ = innovation;
+    y_hat_ = y_hat;
+    gain_ = K;
+    return true;
+  }
+
+  [[nodiscard]] const Vector& x() const noexcept { return x_; }
+  [[nodiscard]] const Matrix& P() const noexcept { return P_; }
+  [[nodiscard]] const MVector& innovation() const noexcept { return innovation_; }
+  [[nodiscard]] const MVector& predicted_measurement() const noexcept { return y_hat_; }
+  [[nodiscard]] const Gain& gain() const noexcept { return gain_; }
+
+ private:
+  /// Weighted mean and covariance of the points (without Q).
+  void moments(Vector& mean, Matrix& cov) const noexcept {
+    cov.setZero(n_, n_);
+    if (sums_ == Sums::about_centre) {
+      Vector dbar = Vector::Zero(n_);  // x^- - chi_0 = sum_{i>=1} Wi d_i (sum of W^m = 1)
+      for (int i = 1; i < points_; ++i) dbar += wi_ * chi_.col(i);
+      mean = centre_ + dbar;
+      cov.noalias() += wc0_ * dbar * dbar.transpose();
+      for (int i = 1; i < points_; ++i) {
+        const Vector d = chi_.col(i) - dbar;
+        cov.noalias() += wi_ * d * d.transpose();
+      }
+      return;
+    }
+    mean = wm0_ * chi_.col(0);
+    for (int i = 1; i < points_; ++i) mean += wi_ * chi_.col(i);
+    for (int i = 0; i < points_; ++i) {
+      const Vector d = chi_.col(i) - mean;
+      cov.noalias() += (i == 0 ? wc0_ : wi_) * d * d.transpose();
+    }
+  }
+
+  int n_ = 0;
+  int m_ = 0;
+  int points_ = 1;
+  Sums sums_ = Sums::about_centre;
+  bool redraw_ = false;
+  Scalar wm0_{}, wc0_{}, wi_{}, spread_{};
+  Vector x_;
+  Matrix P_;
+  Vector centre_;     ///< chi_0 (about_centre)
+  Points chi_;        ///< deviations d_i (about_centre, d_0 = 0) or absolute points (raw)
+  MVector y_centre_;  ///< h(chi_0) (about_centre)
+  MPoints upsilon_;   ///< deviations h(chi_i) - h(chi_0), or absolute (raw)
+  MVector innovation_;
+  MVector y_hat_;
+  Gain gain_;
+  Eigen::LLT<Matrix> llt_;
+};
+
+}  // namespace ukf
+
+class UnscentedEstimator final : public nonlinear::ModelEstimator {
+ public:
+  [[nodiscard]] const ukf::Weights& weights() const { return weights_; }
+  [[nodiscard]] const nonlinear::GainMatrix& gain() const { return core_.gain(); }
+
+ protected:
+  void read_filter_params(Params& params) override;
+  Status prepare_filter(Params& params) override;
+  void reset_filter() noexcept override;
+  StepStatus filter_cycle(bool first) noexcept override;
+  void describe_filter(Json& out) const override;
+
+ private:
+  double alpha_ = 0.002;
+  double beta_ = 2.0;
+  double kappa_ = 0.0;
+  bool redraw_ = false;
+  ukf::Weights weights_;
+  ukf::UnscentedCore<double> core_;
+};
+
+}  // namespace lode::plugins
