@@ -63,10 +63,7 @@ std::vector<double> per_channel(Params& params, std::string_view key, std::vecto
   return values;
 }
 
-std::complex<double> response(const Coefficients& c, double f_hz, double rate_hz) {
-  return lode::math::discrete_response({{c.b0, c.b1, c.b2}, {1.0, c.a1, c.a2}}, 2.0 * std::numbers::pi * f_hz,
-                                       1.0 / rate_hz);
-}
+using lode::math::biquad_response;
 
 Type type_from(const std::string& text) {
   if (text == "highpass") return Type::highpass;
@@ -251,11 +248,11 @@ void BiquadFilter::describe(Json& out) const {
     const Coefficients& k = sections_[i].coefficients();
     c["b"] = std::vector<double>{k.b0, k.b1, k.b2};
     c["a"] = std::vector<double>{1.0, k.a1, k.a2};
-    c["dc_gain"] = std::abs(response(k, 0.0, rate_hz_));
-    c["nyquist_gain"] = std::abs(response(k, 0.5 * rate_hz_, rate_hz_));
+    c["dc_gain"] = std::abs(biquad_response(k, 0.0, rate_hz_));
+    c["nyquist_gain"] = std::abs(biquad_response(k, 0.5 * rate_hz_, rate_hz_));
     if (d.type != Type::coefficients) {
       // Floored at -400 dB so a notch's exact null stays a number in the JSON.
-      c["gain_at_f_db"] = std::max(20.0 * std::log10(std::abs(response(k, d.f_hz, rate_hz_))), -400.0);
+      c["gain_at_f_db"] = std::max(20.0 * std::log10(std::abs(biquad_response(k, d.f_hz, rate_hz_))), -400.0);
     }
     const auto poles = lode::math::poly_roots({1.0, k.a1, k.a2});
     if (!poles.empty()) c["pole_radius"] = std::max(std::abs(poles.front()), std::abs(poles.back()));

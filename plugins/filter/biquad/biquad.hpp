@@ -37,6 +37,7 @@
 #include <vector>
 
 #include "lode/block.hpp"
+#include "lode/math/biquad.hpp"
 
 namespace lode::plugins {
 
@@ -46,36 +47,13 @@ enum class Type { lowpass, highpass, bandpass, notch, coefficients };
 const char* to_string(Type type);
 
 /// H(z) = (b0 + b1 z^-1 + b2 z^-2) / (1 + a1 z^-1 + a2 z^-2).
-struct Coefficients {
-  double b0 = 1.0, b1 = 0.0, b2 = 0.0, a1 = 0.0, a2 = 0.0;
-};
+using Coefficients = lode::math::BiquadCoefficients;
 
 /// Prewarped-Tustin design of a cookbook form at rate_hz (configure time).
 Coefficients design(Type type, double f_hz, double q, double rate_hz);
 
-/// One channel's transposed direct form II section.
-class Section {
- public:
-  void configure(const Coefficients& c) { c_ = c; reset(); }
-  void reset() noexcept { s1_ = 0.0; s2_ = 0.0; }
-  /// y for input x; returns false (state unchanged) if the result is not finite.
-  bool step(double x, double& y) noexcept {
-    const double out = c_.b0 * x + s1_;
-    const double s1 = c_.b1 * x - c_.a1 * out + s2_;
-    const double s2 = c_.b2 * x - c_.a2 * out;
-    if (!std::isfinite(out) || !std::isfinite(s1) || !std::isfinite(s2)) return false;
-    s1_ = s1;
-    s2_ = s2;
-    y = out;
-    return true;
-  }
-  [[nodiscard]] const Coefficients& coefficients() const { return c_; }
-
- private:
-  Coefficients c_;
-  double s1_ = 0.0;
-  double s2_ = 0.0;
-};
+/// One channel's transposed direct form II section (shared with the other filter plugins).
+using Section = lode::math::BiquadSection;
 
 struct ChannelDesign {
   bool filtered = false;

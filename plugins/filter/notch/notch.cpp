@@ -60,10 +60,7 @@ std::vector<double> per_channel(Params& params, std::string_view key, std::vecto
   return values;
 }
 
-std::complex<double> response(const Coefficients& c, double f_hz, double rate_hz) {
-  return lode::math::discrete_response({{c.b0, c.b1, c.b2}, {1.0, c.a1, c.a2}}, 2.0 * std::numbers::pi * f_hz,
-                                       1.0 / rate_hz);
-}
+using lode::math::biquad_response;
 
 /// 20 log10 |h|, floored at -400 dB so an exact null stays a number in describe()'s JSON.
 double decibels(std::complex<double> h) { return std::max(20.0 * std::log10(std::abs(h)), -400.0); }
@@ -254,9 +251,9 @@ void NotchFilter::describe(Json& out) const {
     const Coefficients& k = sections_[i].coefficients();
     c["b"] = std::vector<double>{k.b0, k.b1, k.b2};
     c["a"] = std::vector<double>{1.0, k.a1, k.a2};
-    c["dc_gain"] = std::abs(response(k, 0.0, rate_hz_));
-    c["nyquist_gain"] = std::abs(response(k, 0.5 * rate_hz_, rate_hz_));
-    if (d.form != notch::Form::coefficients) c["gain_at_f_notch_db"] = decibels(response(k, d.f_notch_hz, rate_hz_));
+    c["dc_gain"] = std::abs(biquad_response(k, 0.0, rate_hz_));
+    c["nyquist_gain"] = std::abs(biquad_response(k, 0.5 * rate_hz_, rate_hz_));
+    if (d.form != notch::Form::coefficients) c["gain_at_f_notch_db"] = decibels(biquad_response(k, d.f_notch_hz, rate_hz_));
     const auto zeros = lode::math::poly_roots({k.b0, k.b1, k.b2});
     const auto poles = lode::math::poly_roots({1.0, k.a1, k.a2});
     if (!zeros.empty()) {

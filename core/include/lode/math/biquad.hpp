@@ -1,0 +1,55 @@
+// One second-order section, shared by the filter plugins (filter.biquad, filter.notch).
+//
+//   H(z) = (b0 + b1 z^-1 + b2 z^-2) / (1 + a1 z^-1 + a2 z^-2)
+//
+// run in transposed direct form II: y = b0 x + s1, s1 <- b1 x - a1 y + s2, s2 <- b2 x - a2 y.
+// step() is RT-safe.
+#pragma once
+
+#include <cmath>
+#include <complex>
+#include <numbers>
+
+#include "lode/math/discretize.hpp"
+
+namespace lode::math {
+
+struct BiquadCoefficients {
+  double b0 = 1.0, b1 = 0.0, b2 = 0.0, a1 = 0.0, a2 = 0.0;
+};
+
+class BiquadSection {
+ public:
+  void configure(const BiquadCoefficients& c) {
+    c_ = c;
+    reset();
+  }
+  void reset() noexcept {
+    s1_ = 0.0;
+    s2_ = 0.0;
+  }
+  /// y for input x; returns false (state unchanged) if the result is not finite.
+  bool step(double x, double& y) noexcept {
+    const double out = c_.b0 * x + s1_;
+    const double s1 = c_.b1 * x - c_.a1 * out + s2_;
+    const double s2 = c_.b2 * x - c_.a2 * out;
+    if (!std::isfinite(out) || !std::isfinite(s1) || !std::isfinite(s2)) return false;
+    s1_ = s1;
+    s2_ = s2;
+    y = out;
+    return true;
+  }
+  [[nodiscard]] const BiquadCoefficients& coefficients() const { return c_; }
+
+ private:
+  BiquadCoefficients c_;
+  double s1_ = 0.0;
+  double s2_ = 0.0;
+};
+
+/// H(e^{j 2 pi f / rate}) of a section (configure time / describe()).
+inline std::complex<double> biquad_response(const BiquadCoefficients& c, double f_hz, double rate_hz) {
+  return discrete_response({{c.b0, c.b1, c.b2}, {1.0, c.a1, c.a2}}, 2.0 * std::numbers::pi * f_hz, 1.0 / rate_hz);
+}
+
+}  // namespace lode::math
