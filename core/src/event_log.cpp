@@ -15,6 +15,14 @@ std::vector<Event> EventLog::snapshot() const {
   return events_;
 }
 
+std::vector<Event> EventLog::since(std::size_t& cursor) const {
+  std::lock_guard lock(mutex_);
+  std::vector<Event> out;
+  if (cursor < events_.size()) out.assign(events_.begin() + static_cast<std::ptrdiff_t>(cursor), events_.end());
+  cursor = events_.size();
+  return out;
+}
+
 Json EventLog::to_json() const {
   Json out = Json::array();
   for (const auto& e : snapshot()) {

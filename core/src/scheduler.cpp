@@ -72,8 +72,9 @@ Scheduler::Scheduler(Pipeline& pipeline, Clock& clock, EventLog& events)
 bool Scheduler::cycle(const Tick& tick, RunResult& result) noexcept {
   rt_log_set_clock(tick.time_ns, tick.cycle);
   const std::int64_t start = clock_.simulated() ? 0 : clock_.now_ns();
+  for (auto* hook : hooks_) hook->before_cycle(tick);
   const auto r = pipeline_.run_cycle(tick, time_ops_);
-  for (auto* tap : taps_) tap->capture(tick.cycle, tick.time_ns);
+  for (auto* hook : hooks_) hook->after_cycle(tick);
   if (!clock_.simulated()) stats_.cycle_time.record(clock_.now_ns() - start);
   stats_.cycles.store(tick.cycle + 1, std::memory_order_relaxed);
   stats_.executed.store(stats_.executed.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);

@@ -10,7 +10,9 @@
 
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
+#include "lode/control.hpp"
 #include "lode/scheduler.hpp"
+#include "lode/telemetry.hpp"
 #include "lode/testing/allocation_counter.hpp"
 
 namespace {
@@ -61,6 +63,16 @@ TEST_P(NoAllocation, HundredThousandCyclesAllocateNothing) {
   lode::SignalTap tap(signals, 1024);
   std::vector<double> drained;
   drained.reserve(1024 * tap.stride());
+  // So is the telemetry side: every output published at full rate (rings that fill up drop
+  // and count, which must not allocate either), and the command mailbox checked each cycle.
+  lode::TelemetrySpec spec = p->telemetry();
+  spec.signals.clear();
+  for (const auto& s : signals) spec.signals.push_back({s, 1, ""});
+  spec.ring_records = 4096;
+  lode::TelemetryTap telemetry(spec, p->rate_hz());
+  lode::EventLog events;
+  lode::ControlService control(*p, events);
+  control.set_running(true);
   lode::Tick tick;
   tick.dt_s = 1.0 / p->rate_hz();
   std::size_t allocations = 0;
@@ -69,16 +81,24 @@ TEST_P(NoAllocation, HundredThousandCyclesAllocateNothing) {
     tick.cycle = k;
     tick.time_ns = static_cast<std::int64_t>(k) * p->period_ns();
     const auto before = allocation_count();
+    control.before_cycle(tick);
     if (p->run_cycle(tick, true).status != lode::StepStatus::ok) ++faults;
     tap.capture(k, tick.time_ns);
+    telemetry.after_cycle(tick);
     allocations += allocation_count() - before;
     if ((k & 511) == 511) {  // draining is the consumer's (non-RT) side: not counted
       drained.clear();
       tap.drain(drained);
+      if ((k >> 14) % 2 == 0)  // half of the time nobody drains: the rings fill and drop
+        for (auto& c : telemetry.channels()) {
+          lode::SampleHeader h;
+          while (c.ring->front(h)) c.ring->pop();
+        }
     }
   }
   EXPECT_EQ(faults, 0u);
   EXPECT_EQ(allocations, 0u) << GetParam() << ": step() allocated";
+  EXPECT_GT(telemetry.dropped(), 0u) << "the drop path of the telemetry rings was not exercised";
   p->deactivate();
 }
 

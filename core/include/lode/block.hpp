@@ -41,6 +41,17 @@ struct Tick {
 
 enum class StepStatus : std::uint8_t { ok = 0, fault = 1 };
 
+/// A parameter that may change while the block runs (`lode set`). Booleans are integers in
+/// [0, 1] ("true"/"false"/"on"/"off" are accepted by the command path).
+struct Tunable {
+  std::string name;         ///< the YAML key it corresponds to
+  std::string unit;         ///< SI unit, "1" for dimensionless, "bool" for a switch
+  double min = -1e300;      ///< inclusive range; the command path refuses values outside
+  double max = 1e300;
+  bool integer = false;
+  std::string description;
+};
+
 /// Owning handle to a model created from the pipeline's `models:` section.
 template <typename M>
 using ModelPtr = std::unique_ptr<M>;
@@ -93,6 +104,21 @@ class Block : public virtual Component {
   virtual void deactivate() noexcept {}
   /// Derived quantities for `lode describe` (discretised coefficients, gains, ...).
   virtual void describe(Json& /*out*/) const {}
+
+  /// @name Runtime parameters (`lode set`, remote commands).
+  /// tunables() is called off the RT thread, once, after configure(). The command path
+  /// checks range and integrality against it, then calls set_tunable() on the RT thread at
+  /// a cycle boundary (or on any thread while the pipeline is not running): it must be
+  /// RT-safe, take effect from the next step(), and may refuse (return false with a static
+  /// reason in `why`) a value that the range alone does not exclude.
+  //@{
+  [[nodiscard]] virtual std::vector<Tunable> tunables() const { return {}; }
+  [[nodiscard]] virtual double tunable_value(std::size_t /*index*/) const noexcept { return 0.0; }
+  virtual bool set_tunable(std::size_t /*index*/, double /*value*/, const char*& why) noexcept {
+    why = "not tunable";
+    return false;
+  }
+  //@}
 
   /// Reason of the last StepStatus::fault (a string literal).
   [[nodiscard]] const char* fault_reason() const noexcept { return fault_reason_; }

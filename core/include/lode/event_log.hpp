@@ -22,6 +22,8 @@ class EventLog {
  public:
   void post(std::int64_t time_ns, std::uint64_t cycle, std::string kind, std::string text);
   [[nodiscard]] std::vector<Event> snapshot() const;
+  /// Events posted since `cursor` (an index into the log); advances the cursor.
+  [[nodiscard]] std::vector<Event> since(std::size_t& cursor) const;
   [[nodiscard]] Json to_json() const;
 
  private:

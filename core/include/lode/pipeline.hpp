@@ -20,6 +20,8 @@
 
 namespace lode {
 
+struct TelemetrySpec;  // telemetry.hpp
+
 enum class OverrunPolicy { skip, catch_up, stop };
 
 struct RealtimeSettings {
@@ -85,6 +87,10 @@ class Pipeline {
   [[nodiscard]] const RealtimeSettings& realtime() const;
   [[nodiscard]] std::optional<double> default_duration_s() const;
   [[nodiscard]] const MonitorSpec& monitor() const;
+  /// The `telemetry:` section (enabled == false when absent). Defined in telemetry.hpp.
+  [[nodiscard]] const TelemetrySpec& telemetry() const;
+  /// The pipeline file's text as loaded (recorded with every recording).
+  [[nodiscard]] const std::string& source_text() const;
 
   Status activate();
   void deactivate() noexcept;
@@ -102,6 +108,8 @@ class Pipeline {
   [[nodiscard]] std::vector<SignalRef> signals() const;
   /// The block instance named `name` (nullptr if none).
   [[nodiscard]] Block* block(const std::string& name) const;
+  /// Names of every block, in file order.
+  [[nodiscard]] std::vector<std::string> block_names() const;
   /// The resolved pipeline with every derived quantity.
   [[nodiscard]] Json describe() const;
 

@@ -18,6 +18,7 @@
 #include "lode/event_log.hpp"
 #include "lode/histogram.hpp"
 #include "lode/pipeline.hpp"
+#include "lode/telemetry.hpp"
 
 namespace lode {
 
@@ -50,11 +51,12 @@ class SimulatedClock final : public Clock {
 
 /// Copies chosen signals every cycle into a wait-free single-producer ring for a non-RT
 /// consumer. A full ring drops the record and counts it; it never blocks the producer.
-class SignalTap {
+class SignalTap final : public CycleHook {
  public:
   explicit SignalTap(std::vector<SignalRef> signals, std::size_t capacity_records = 1 << 15);
   /// RT thread. Record = [cycle, time_s, values of every signal...].
   void capture(std::uint64_t cycle, std::int64_t time_ns) noexcept;
+  void after_cycle(const Tick& tick) noexcept override { capture(tick.cycle, tick.time_ns); }
   /// Consumer thread: append every available record to `out`; returns records appended.
   std::size_t drain(std::vector<double>& out);
   [[nodiscard]] std::size_t stride() const { return stride_; }
@@ -96,7 +98,10 @@ class Scheduler {
  public:
   Scheduler(Pipeline& pipeline, Clock& clock, EventLog& events);
 
-  void add_tap(SignalTap* tap) { taps_.push_back(tap); }
+  /// Called on the RT thread around every cycle (taps, telemetry, the command mailbox).
+  /// Add every hook before run(); the list is fixed while running.
+  void add_hook(CycleHook* hook) { hooks_.push_back(hook); }
+  void add_tap(SignalTap* tap) { add_hook(tap); }
   /// Measure per-op execution time (two clock reads per op).
   void set_time_ops(bool on) { time_ops_ = on; }
 
@@ -118,7 +123,7 @@ class Scheduler {
   Pipeline& pipeline_;
   Clock& clock_;
   EventLog& events_;
-  std::vector<SignalTap*> taps_;
+  std::vector<CycleHook*> hooks_;
   bool time_ops_ = true;
   RunStats stats_;
   // Fault details written by the RT thread, read after it joins.

@@ -1,0 +1,134 @@
+// Telemetry: what a pipeline publishes (the YAML `telemetry:` section) and the RT side of
+// the bridge (DESIGN.md §9).
+//
+// The RT thread never talks to Fast DDS. After each cycle it copies the published signals,
+// each at its own decimated rate, into wait-free single-producer rings (TelemetryTap); a
+// non-RT thread of the DDS bridge (core/dds) drains them and publishes typed topics. A full
+// ring drops the record and counts it; the RT thread never waits. The core itself does not
+// depend on Fast DDS: a pipeline without a bridge (or built without one) runs unchanged.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lode/pipeline.hpp"
+#include "lode/sample_ring.hpp"
+
+namespace lode {
+
+/// How participants find each other (the YAML `telemetry.transport` and `telemetry.network`).
+struct TransportSpec {
+  enum class Kind {
+    loopback,      ///< shared memory + UDPv4 restricted to 127.0.0.1 (default; same host only)
+    shm,           ///< shared memory only
+    udp_loopback,  ///< UDPv4 on 127.0.0.1 only
+    network,       ///< UDPv4 on the listed interfaces (+ shared memory for local peers)
+  };
+  Kind kind = Kind::loopback;
+  std::vector<std::string> interfaces;     ///< network: IPv4 addresses of the NICs to use (allowlist)
+  std::vector<std::string> initial_peers;  ///< unicast discovery peers ("10.0.0.2" or "10.0.0.2:7412")
+  bool multicast = true;                   ///< network: SPDP multicast discovery (off = peers only)
+};
+
+[[nodiscard]] const char* to_string(TransportSpec::Kind kind);
+
+/// DDS Security (authentication + access control + encryption) with the builtin plugins.
+/// Empty paths = security off. Paths are resolved relative to the pipeline file.
+struct SecuritySpec {
+  std::string ca_certificate;        ///< identity CA (PEM)
+  std::string certificate;           ///< this participant's identity certificate (PEM)
+  std::string private_key;           ///< its private key (PEM)
+  std::string permissions_ca;        ///< permissions CA (PEM); defaults to ca_certificate
+  std::string governance;            ///< signed governance document (S/MIME .p7s)
+  std::string permissions;           ///< signed permissions document (S/MIME .p7s)
+  [[nodiscard]] bool enabled() const { return !certificate.empty(); }
+};
+
+/// Who may command the stage. Off unless the YAML enables it.
+struct CommandAccess {
+  bool enabled = false;
+  /// IPv4 addresses a command may come from ("127.0.0.1" also matches shared-memory peers
+  /// on this host). Empty = any host.
+  std::vector<std::string> allow_hosts;
+  /// DDS participant names allowed to command (`lode set --name NAME`). Empty = any name.
+  std::vector<std::string> allow_participants;
+};
+
+struct TelemetrySignal {
+  SignalRef signal;
+  std::uint32_t decimation = 1;  ///< publish every n-th cycle (cycle % n == 0)
+  std::string topic;             ///< lode/<pipeline>/<block>/<port>
+  [[nodiscard]] double rate_hz(double pipeline_rate_hz) const { return pipeline_rate_hz / decimation; }
+};
+
+/// Stage state topic: pose (+ twist, + covariance) of one estimator, as one sample.
+struct StateSpec {
+  SignalRef pose;
+  std::optional<SignalRef> twist;
+  std::optional<SignalRef> covariance;  ///< row-major n x n, n = pose (+ twist) elements
+  std::uint32_t decimation = 1;
+  std::string topic;  ///< lode/<pipeline>/state
+};
+
+struct TelemetrySpec {
+  bool enabled = false;  ///< a `telemetry:` section is present
+  int domain = 0;        ///< DDS domain id 0..232
+  TransportSpec transport;
+  SecuritySpec security;
+  CommandAccess commands;
+  std::vector<TelemetrySignal> signals;
+  std::optional<StateSpec> state;
+  double timing_rate_hz = 1.0;   ///< timing statistics topic
+  std::uint32_t ring_records = 0;  ///< per-signal ring capacity; 0 = one second of samples (min 1024)
+  std::uint32_t history = 0;       ///< DDS writer history depth; 0 = one second of samples (min 64)
+};
+
+/// Topic names a person can guess from the YAML.
+[[nodiscard]] std::string signal_topic(const std::string& pipeline, const std::string& block,
+                                       const std::string& port);
+[[nodiscard]] std::string pipeline_topic(const std::string& pipeline, const std::string& what);
+
+/// Something the scheduler calls on the RT thread around every cycle.
+class CycleHook {
+ public:
+  virtual ~CycleHook() = default;
+  /// Before the pipeline's cycle (commands are applied here, at a cycle boundary).
+  virtual void before_cycle(const Tick& /*tick*/) noexcept {}
+  /// After the cycle, with the cycle's outputs in place.
+  virtual void after_cycle(const Tick& /*tick*/) noexcept {}
+};
+
+/// RT side of the telemetry: one ring per published signal (and one for the state).
+/// Record layout: SampleRing header (cycle, stamp_ns = scheduled time, captured_ns =
+/// CLOCK_MONOTONIC when it was copied) followed by the signal's values.
+class TelemetryTap final : public CycleHook {
+ public:
+  TelemetryTap(const TelemetrySpec& spec, double pipeline_rate_hz);
+
+  void after_cycle(const Tick& tick) noexcept override;
+
+  struct Channel {
+    const double* data = nullptr;
+    std::size_t width = 0;
+    std::uint32_t decimation = 1;
+    std::unique_ptr<SampleRing> ring;
+    // State channel only: up to three sources concatenated (pose, twist, covariance).
+    const double* extra_data[2] = {nullptr, nullptr};
+    std::size_t extra_width[2] = {0, 0};
+  };
+  /// Channels in the order of spec.signals, then the state channel if any.
+  [[nodiscard]] std::vector<Channel>& channels() { return channels_; }
+  [[nodiscard]] const std::vector<Channel>& channels() const { return channels_; }
+  /// Records dropped over every ring (consumer too slow).
+  [[nodiscard]] std::uint64_t dropped() const;
+  /// Records offered to the rings (published or dropped).
+  [[nodiscard]] std::uint64_t offered() const;
+
+ private:
+  std::vector<Channel> channels_;
+};
+
+}  // namespace lode
