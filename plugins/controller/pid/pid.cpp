@@ -14,7 +14,7 @@ namespace lode::plugins {
 
 namespace pid {
 
-Recursion design(const Gains& g, double period_s) {
+Recursion design(const Gains& g, double period_s) noexcept {
   const double T = period_s;
   // Without a derivative part there is no filter pole: p = 0 and the denominator is (1 - z^-1).
   const bool derivative = g.kd != 0.0;
@@ -253,6 +253,7 @@ Status PidController::configure(ConfigureContext& ctx) {
     const std::string unit = units.empty() ? "1" : units.size() == 1 ? units[0] : units[k];
     outputs.push_back({name, unit});
   }
+  outputs_ = outputs;
   ctx.declare_output(out_, "out", outputs);
   return params.ok() ? Status::ok() : Status::error("invalid parameters");
 }
@@ -261,6 +262,7 @@ Status PidController::activate() {
   for (std::size_t k = 0; k < axes_; ++k) {
     Axis& a = axis_[k];
     a.u1 = a.u2 = a.initial_output;
+    a.clamped = false;
     out_[k] = a.initial_output;
   }
   first_ = true;
@@ -297,6 +299,7 @@ StepStatus PidController::step(const Tick& /*tick*/) noexcept {
     saturated = saturated || u != v;
     a.u2 = a.u1;
     a.u1 = u;  // the clamped value: the anti-windup
+    a.clamped = u != v;
     a.r2 = a.r1;
     a.r1 = r;
     a.y2 = a.y1;
@@ -306,6 +309,136 @@ StepStatus PidController::step(const Tick& /*tick*/) noexcept {
   if (saturated) saturations_.fetch_add(1, std::memory_order_relaxed);
   first_ = false;
   return StepStatus::ok;
+}
+
+std::vector<Tunable> PidController::tunables() const {
+  struct KnobDoc {
+    const char* key;
+    const char* description;
+  };
+  static constexpr KnobDoc kKnobs[] = {
+      {"kp", "proportional gain; bumpless (the integrator absorbs the change)"},
+      {"ki", "integral gain; bumpless (only future increments change)"},
+      {"kd", "derivative gain; bumpless, filter state kept; != 0 needs derivative_filter_rad_s > 0"},
+      {"output_min", "lower output limit, < output_max; applies from the next output"},
+      {"output_max", "upper output limit, > output_min; applies from the next output"},
+  };
+  auto unit_of = [&](std::size_t knob, std::size_t k) {
+    const std::string& out = outputs_[k].unit;
+    const std::string& in = controlled_[k].unit;
+    switch (knob) {
+      case 0: return out + "/" + in;
+      case 1: return out + "/(" + in + "*s)";
+      case 2: return out + "*s/" + in;
+      default: return out;
+    }
+  };
+  std::vector<Tunable> list;
+  for (std::size_t knob = first_knob(); knob < 5; ++knob) {
+    list.push_back({kKnobs[knob].key, unit_of(knob, 0), -1e300, 1e300, false,
+                    std::string(kKnobs[knob].description) + (axes_ > 1 ? " (every axis)" : "")});
+    for (std::size_t k = 0; axes_ > 1 && k < axes_; ++k) {
+      list.push_back({std::string(kKnobs[knob].key) + "." + controlled_[k].name, unit_of(knob, k), -1e300, 1e300,
+                      false, std::string(kKnobs[knob].description) + " (axis " + controlled_[k].name + ")"});
+    }
+  }
+  return list;
+}
+
+bool PidController::locate(std::size_t index, Knob& knob, std::size_t& first_axis,
+                           std::size_t& end_axis) const noexcept {
+  const std::size_t stride = knob_stride();
+  const std::size_t k = first_knob() + index / stride;
+  if (axes_ == 0 || k > static_cast<std::size_t>(Knob::output_max)) return false;
+  knob = static_cast<Knob>(k);
+  const std::size_t slot = index % stride;  // 0: every axis, 1 + i: axis i
+  first_axis = slot == 0 ? 0 : slot - 1;
+  end_axis = slot == 0 ? axes_ : slot;
+  return true;
+}
+
+double PidController::tunable_value(std::size_t index) const noexcept {
+  Knob knob{};
+  std::size_t first = 0, end = 0;
+  if (!locate(index, knob, first, end)) return 0.0;
+  switch (knob) {
+    case Knob::kp: return gains_[first].kp;
+    case Knob::ki: return gains_[first].ki;
+    case Knob::kd: return gains_[first].kd;
+    case Knob::output_min: return axis_[first].output_min;
+    case Knob::output_max: return axis_[first].output_max;
+  }
+  return 0.0;
+}
+
+void PidController::rebase_for_new_gains(std::size_t k, const pid::Gains& next) noexcept {
+  // Positionally u = P + I + kd Df, with Df the filtered derivative of d = gamma r - y
+  // (Df(k) = p Df(k-1) + g (d(k) - d(k-1)), g = 2N/(2 + N T)). Bumpless transfer keeps u(k-1)
+  // and Df and lets I absorb the change, so that
+  //   u(k) = u(k-1) + dP'(k) + dI'(k) + kd' dDf(k),   dDf(k) = p dDf(k-1) + g (dd(k) - dd(k-1)).
+  // The recursion computes u(k) = u(k-1) + p (u(k-1) - u(k-2)) + [numerator' on the history]
+  // = u(k-1) + dP'(k) + dI'(k) + c' (dd(k) - dd(k-1)) + p (u(k-1) - u(k-2) - dP'(k-1) - dI'(k-1)),
+  // so u(k-2) is restated to make the last bracket kd' dDf(k-1).
+  Axis& a = axis_[k];
+  if (first_) return;  // no history yet: the first step starts it from the new gains
+  const pid::Gains& old = gains_[k];
+  const double T = period_s_;
+  const double e1 = a.r1 - a.y1, e2 = a.r2 - a.y2;
+  auto p_increment = [&](const pid::Gains& g) {
+    return g.kp * ((g.setpoint_weight_p * a.r1 - a.y1) - (g.setpoint_weight_p * a.r2 - a.y2));
+  };
+  auto i_increment = [&](const pid::Gains& g) { return 0.5 * g.ki * T * (e1 + e2); };
+  // The derivative part's last increment under the old gains (unknown after a clamp, whose
+  // u(k-1) - u(k-2) is not the PID's own: then the filter is taken at rest).
+  const double old_d_increment =
+      (old.kd != 0.0 && !a.clamped) ? (a.u1 - a.u2) - p_increment(old) - i_increment(old) : 0.0;
+  const double new_d_increment = old.kd != 0.0 ? old_d_increment * (next.kd / old.kd) : 0.0;
+  a.u2 = a.u1 - (p_increment(next) + i_increment(next) + new_d_increment);
+  a.clamped = false;
+}
+
+bool PidController::set_tunable(std::size_t index, double value, const char*& why) noexcept {
+  Knob knob{};
+  std::size_t first = 0, end = 0;
+  if (!locate(index, knob, first, end)) {
+    why = "no such parameter";
+    return false;
+  }
+  if (!std::isfinite(value)) {
+    why = "the value must be finite";
+    return false;
+  }
+  // Check every affected axis before changing any: all or nothing.
+  for (std::size_t k = first; k < end; ++k) {
+    if (knob == Knob::kd && value != 0.0 && !(gains_[k].derivative_filter_rad_s > 0.0)) {
+      why = "kd != 0 needs derivative_filter_rad_s > 0, which is configured 0 (not tunable)";
+      return false;
+    }
+    if (knob == Knob::output_min && !(value < axis_[k].output_max)) {
+      why = "output_min must be < output_max";
+      return false;
+    }
+    if (knob == Knob::output_max && !(value > axis_[k].output_min)) {
+      why = "output_max must be > output_min";
+      return false;
+    }
+  }
+  for (std::size_t k = first; k < end; ++k) {
+    Axis& a = axis_[k];
+    switch (knob) {
+      case Knob::output_min: a.output_min = value; continue;
+      case Knob::output_max: a.output_max = value; continue;
+      default: break;
+    }
+    pid::Gains next = gains_[k];
+    (knob == Knob::kp ? next.kp : knob == Knob::ki ? next.ki : next.kd) = value;
+    // kd switched on or off moves the filter pole p (0 without a derivative part): the
+    // restated history covers that too, as the recursion below is rebuilt from `next`.
+    rebase_for_new_gains(k, next);
+    gains_[k] = next;
+    a.recursion = pid::design(next, period_s_);
+  }
+  return true;
 }
 
 void PidController::describe(Json& out) const {

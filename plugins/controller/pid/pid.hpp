@@ -25,7 +25,15 @@
 // beta r - y and gamma r - y (2-DOF PID; 1, 1 is eq. 35's pure-error form): with beta = gamma
 // = 0 a reference step moves the output only through the integral, without the derivative kick.
 //
-// Threads: configure()/activate()/describe() on the loader thread, step() on the RT thread.
+// Runtime parameters (`lode set`): kp, ki, kd (designed from gains only) and output_min,
+// output_max, for every axis (`kp`) or one (`kp.<axis>`, with more than one axis). A gain
+// change is bumpless: the output continues from u(k-1) by the new gains' increments, i.e.
+// in positional terms the integrator absorbs the change (I' = u(k-1) - P'(k-1) - D'(k-1)),
+// and the derivative filter's state (the filtered derivative, before kd) is kept. In the
+// recursion this is one restated history value, u(k-2) (see rebase_for_new_gains()).
+//
+// Threads: configure()/activate()/describe() on the loader thread, step() on the RT thread;
+// set_tunable() on the RT thread at a cycle boundary.
 #pragma once
 
 #include <array>
@@ -60,7 +68,7 @@ struct Gains {
   double setpoint_weight_p = 1.0;
   double setpoint_weight_d = 1.0;
 };
-Recursion design(const Gains& gains, double period_s);
+Recursion design(const Gains& gains, double period_s) noexcept;
 
 /// The eq. 35 form directly: numerator b0..b2 on e, denominator a0..a2 (a0 normalised to 1).
 Recursion from_coefficients(const std::vector<double>& numerator, const std::vector<double>& denominator);
@@ -82,6 +90,10 @@ class PidController final : public Block {
     return saturations_.load(std::memory_order_relaxed);
   }
 
+  [[nodiscard]] std::vector<Tunable> tunables() const override;
+  [[nodiscard]] double tunable_value(std::size_t index) const noexcept override;
+  bool set_tunable(std::size_t index, double value, const char*& why) noexcept override;
+
  private:
   struct Axis {
     pid::Recursion recursion;
@@ -90,13 +102,25 @@ class PidController final : public Block {
     double initial_output = 0.0;
     // History of the recursion (the clamped outputs, references and measurements).
     double u1 = 0.0, u2 = 0.0, r1 = 0.0, r2 = 0.0, y1 = 0.0, y2 = 0.0;
+    bool clamped = false;  ///< u1 was limited (u1 - u2 is then not the PID's own increment)
   };
+
+  /// Tunable parameters in index order; each has an all-axes entry and, with more than one
+  /// axis, one entry per axis after it.
+  enum class Knob : std::size_t { kp, ki, kd, output_min, output_max };
+  [[nodiscard]] std::size_t knob_stride() const noexcept { return axes_ > 1 ? axes_ + 1 : 1; }
+  [[nodiscard]] std::size_t first_knob() const noexcept { return from_gains_ ? 0 : 3; }
+  /// Which knob and axes an index names; false if none.
+  bool locate(std::size_t index, Knob& knob, std::size_t& first_axis, std::size_t& end_axis) const noexcept;
+  /// Restate u(k-2) of axis k so that the recursion with `next` gains continues bumplessly.
+  void rebase_for_new_gains(std::size_t k, const pid::Gains& next) noexcept;
 
   std::size_t axes_ = 0;
   double period_s_ = 0.0;
   bool from_gains_ = true;
   std::vector<pid::Gains> gains_;
   Elements controlled_;
+  Elements outputs_;
   std::array<Axis, pid::kMaxAxes> axis_{};
   std::array<std::size_t, pid::kMaxAxes> measurement_index_{};
   std::array<std::size_t, pid::kMaxAxes> reference_index_{};

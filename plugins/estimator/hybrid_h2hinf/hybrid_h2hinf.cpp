@@ -445,6 +445,37 @@ Status HybridH2HinfEstimator::set_mixing(double d) {
   return Status::ok();
 }
 
+std::vector<Tunable> HybridH2HinfEstimator::tunables() const {
+  return {{"d", "1", 0.0, 1.0, false,
+           "mixing weight of eq. 25, K = d K^K + (1 - d) K^inf; refused if the blend is unstable"}};
+}
+
+double HybridH2HinfEstimator::tunable_value(std::size_t index) const noexcept {
+  return index == 0 ? mixing() : 0.0;
+}
+
+bool HybridH2HinfEstimator::set_tunable(std::size_t index, double value, const char*& why) noexcept {
+  if (index != 0) {
+    why = "no such parameter";
+    return false;
+  }
+  if (!(value >= 0.0 && value <= 1.0)) {
+    why = "d must be in [0, 1] (eq. 25)";
+    return false;
+  }
+  // Only the gain changes: the state x^+ carries over, so the estimate moves only through the
+  // next innovation (no transient beyond the new filter's own response).
+  for (std::size_t i = 0; i < axes_; ++i) {
+    const double rho = hybrid::error_spectral_radius(model_, hybrid::blend(value, kalman_gain_[i], hinf_gain_[i]));
+    if (!(rho < 1.0)) {
+      why = "the blended filter is unstable on some axis (rho((I - K H) Phi) >= 1); d unchanged";
+      return false;
+    }
+  }
+  d_.store(value, std::memory_order_relaxed);
+  return true;
+}
+
 StepStatus HybridH2HinfEstimator::step(const Tick& /*tick*/) noexcept {
   for (std::size_t i = 0; i < axes_; ++i) {
     if (!std::isfinite(measurement_[i])) return fault("non-finite measurement");

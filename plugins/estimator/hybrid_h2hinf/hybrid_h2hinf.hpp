@@ -150,6 +150,12 @@ class HybridH2HinfEstimator final : public Block {
   Status set_mixing(double d);
   [[nodiscard]] double mixing() const noexcept { return d_.load(std::memory_order_relaxed); }
 
+  /// `lode set`: d in [0, 1] (index 0). set_tunable() refuses a d whose blend is unstable on
+  /// some axis, as set_mixing() does, but RT-safe (fixed-size 3x3 eigenvalues, static reason).
+  [[nodiscard]] std::vector<Tunable> tunables() const override;
+  [[nodiscard]] double tunable_value(std::size_t index) const noexcept override;
+  bool set_tunable(std::size_t index, double value, const char*& why) noexcept override;
+
   /// Designed (or injected) gains of axis i, for tests and describe().
   [[nodiscard]] const hybrid::Vector3& kalman_gain(std::size_t axis) const { return kalman_gain_[axis]; }
   [[nodiscard]] const hybrid::Vector3& hinf_gain(std::size_t axis) const { return hinf_gain_[axis]; }

@@ -225,6 +225,32 @@ bool BiquadFilter::enabled(std::size_t channel) const noexcept {
   return channel < channels_ && enabled_[channel].load(std::memory_order_relaxed);
 }
 
+std::vector<Tunable> BiquadFilter::tunables() const {
+  return {{"enabled", "bool", 0.0, 1.0, true, "1: filter, 0: bypass (out = in) every filtered channel"}};
+}
+
+double BiquadFilter::tunable_value(std::size_t index) const noexcept {
+  if (index != 0) return 0.0;
+  for (std::size_t i = 0; i < channels_; ++i) {
+    if (designs_[i].filtered) return enabled(i) ? 1.0 : 0.0;
+  }
+  return 0.0;
+}
+
+bool BiquadFilter::set_tunable(std::size_t index, double value, const char*& why) noexcept {
+  if (index != 0) {
+    why = "no such parameter";
+    return false;
+  }
+  if (!(value == 0.0 || value == 1.0)) {
+    why = "enabled must be 0 or 1";
+    return false;
+  }
+  // The sections keep running while bypassed, so switching either way has no stale state.
+  set_enabled(value == 1.0);
+  return true;
+}
+
 void BiquadFilter::describe(Json& out) const {
   out["rate_hz"] = rate_hz_;
   out["structure"] = "transposed direct form II per channel; bypassed channels keep filtering in the background";

@@ -25,8 +25,10 @@
 // Channels not listed in `channels` pass through; set_enabled(false) bypasses (out = in) at run
 // time while the sections keep running, so re-enabling has no stale-state transient.
 //
+// Runtime parameter (`lode set`): enabled (every filtered channel), as set_enabled().
+//
 // Threads: configure()/activate()/describe() on the loader thread, step() on the RT thread;
-// set_enabled() from any thread (atomic flags).
+// set_enabled() from any thread (atomic flags); set_tunable() on the RT thread.
 #pragma once
 
 #include <atomic>
@@ -76,6 +78,11 @@ class BiquadFilter final : public Block {
   /// The same for one channel (index into the input); false if it is not a filtered channel.
   bool set_enabled(std::size_t channel, bool enabled) noexcept;
   [[nodiscard]] bool enabled(std::size_t channel) const noexcept;
+
+  /// `lode set`: enabled (bool, index 0).
+  [[nodiscard]] std::vector<Tunable> tunables() const override;
+  [[nodiscard]] double tunable_value(std::size_t index) const noexcept override;
+  bool set_tunable(std::size_t index, double value, const char*& why) noexcept override;
 
  private:
   double rate_hz_ = 0.0;

@@ -23,17 +23,26 @@ const char* to_string(Form form) {
   return "unknown";
 }
 
-Coefficients design(Form form, double f_notch_hz, double k, double zeta, double rate_hz) {
+Coefficients design(Form form, double f_notch_hz, double k, double zeta, double rate_hz) noexcept {
   const double w = 2.0 * std::numbers::pi * f_notch_hz;
-  lode::math::TransferFunction analog;
+  // Analog H(s) = (n0 s^2 + n1 s + n2) / (d0 s^2 + d1 s + d2).
+  double n0 = 0.0, n1 = 0.0, n2 = 0.0, d0 = 1.0, d1 = 0.0, d2 = 0.0;
   if (form == Form::depth) {
-    analog = {{1.0, 2.0 * k * zeta * w, w * w}, {1.0, 2.0 * zeta * w, w * w}};
+    n0 = 1.0, n1 = 2.0 * k * zeta * w, n2 = w * w;
+    d1 = 2.0 * zeta * w, d2 = w * w;
   } else {
     const double w0 = w * std::sqrt(k);  // eq. 33
-    analog = {{k, 0.0, w0 * w0}, {1.0, 2.0 * zeta * w0, w0 * w0}};  // eq. 31
+    n0 = k, n1 = 0.0, n2 = w0 * w0;      // eq. 31
+    d1 = 2.0 * zeta * w0, d2 = w0 * w0;
   }
-  const lode::math::TransferFunction d = lode::math::tustin(analog, 1.0 / rate_hz, w);
-  return {d.num[0], d.num[1], d.num[2], d.den[1], d.den[2]};
+  // Tustin prewarped at w: s = c (1 - z^-1)/(1 + z^-1), c = w / tan(w T / 2). Multiplying
+  // through by (1 + z^-1)^2: s^2 -> c^2 (1 - 2 z^-1 + z^-2), s -> c (1 - z^-2),
+  // 1 -> 1 + 2 z^-1 + z^-2 (spec §4.3's closed form for eq31; lode::math::tustin gives the same).
+  const double c = w / std::tan(0.5 * w / rate_hz);
+  const double c2 = c * c;
+  const double b0 = n0 * c2 + n1 * c + n2, b1 = 2.0 * (n2 - n0 * c2), b2 = n0 * c2 - n1 * c + n2;
+  const double a0 = d0 * c2 + d1 * c + d2, a1 = 2.0 * (d2 - d0 * c2), a2 = d0 * c2 - d1 * c + d2;
+  return {b0 / a0, b1 / a0, b2 / a0, a1 / a0, a2 / a0};
 }
 
 }  // namespace notch
@@ -156,6 +165,7 @@ Status NotchFilter::configure(ConfigureContext& ctx) {
     for (std::size_t i = 0; i < count; ++i) coefficients[i] = notch::design(form, f_notch[i], k[i], zeta[i], rate_hz_);
   }
   if (!params.ok()) return Status::error("invalid parameters");
+  designed_ = !raw;
 
   sections_.assign(channels_, {});
   enabled_ = std::make_unique<std::atomic<bool>[]>(channels_);
@@ -224,6 +234,90 @@ bool NotchFilter::set_enabled(std::size_t channel, bool enabled) noexcept {
 
 bool NotchFilter::enabled(std::size_t channel) const noexcept {
   return channel < channels_ && enabled_[channel].load(std::memory_order_relaxed);
+}
+
+std::size_t NotchFilter::first_filtered() const noexcept {
+  for (std::size_t i = 0; i < channels_; ++i) {
+    if (designs_[i].filtered) return i;
+  }
+  return channels_;
+}
+
+std::vector<Tunable> NotchFilter::tunables() const {
+  std::vector<Tunable> out;
+  out.push_back({"enabled", "bool", 0.0, 1.0, true, "1: filter, 0: bypass (out = in) every filtered channel"});
+  if (!designed_) return out;  // raw coefficients: nothing to redesign from
+  const double nyquist_hz = 0.5 * rate_hz_;
+  out.push_back({"f_notch_hz", "Hz", 0.0, nyquist_hz,
+                 false, "notch frequency of every filtered channel, 0 < f < rate/2 (Nyquist refused)"});
+  out.push_back({"k", "1", 0.0, 1e300, false,
+                 "eq31: high-frequency gain (w0 = w sqrt(k)); depth: gain at f_notch; > 0"});
+  out.push_back({"zeta", "1", 0.0, 1e300, false, "damping of the analog denominator (the notch width); > 0"});
+  return out;
+}
+
+double NotchFilter::tunable_value(std::size_t index) const noexcept {
+  const std::size_t first = first_filtered();
+  if (first == channels_) return 0.0;
+  switch (index) {
+    case kEnabled: return enabled(first) ? 1.0 : 0.0;
+    case kFrequency: return designs_[first].f_notch_hz;
+    case kDepth: return designs_[first].k;
+    case kDamping: return designs_[first].zeta;
+    default: return 0.0;
+  }
+}
+
+bool NotchFilter::set_tunable(std::size_t index, double value, const char*& why) noexcept {
+  if (index == kEnabled) {
+    if (!(value == 0.0 || value == 1.0)) {
+      why = "enabled must be 0 or 1";
+      return false;
+    }
+    set_enabled(value == 1.0);
+    return true;
+  }
+  if (!designed_ || index > kDamping) {
+    why = designed_ ? "no such parameter" : "raw coefficients: only enabled is tunable";
+    return false;
+  }
+  if (!std::isfinite(value)) {
+    why = "the value must be finite";
+    return false;
+  }
+  if (index == kFrequency && !(value > 0.0 && value < 0.5 * rate_hz_)) {
+    why = "f_notch_hz must lie strictly between 0 and the Nyquist frequency rate/2";
+    return false;
+  }
+  if (index == kDepth && !(value > 0.0)) {
+    why = "k must be > 0";
+    return false;
+  }
+  if (index == kDamping && !(value > 0.0)) {
+    why = "zeta must be > 0";
+    return false;
+  }
+  // Design every channel first, apply only if all are finite and stable: all or nothing.
+  for (std::size_t pass = 0; pass < 2; ++pass) {
+    for (std::size_t i = 0; i < channels_; ++i) {
+      notch::ChannelDesign d = designs_[i];
+      if (!d.filtered) continue;
+      (index == kFrequency ? d.f_notch_hz : index == kDepth ? d.k : d.zeta) = value;
+      const Coefficients c = notch::design(d.form, d.f_notch_hz, d.k, d.zeta, rate_hz_);
+      if (pass == 0) {
+        const bool finite = std::isfinite(c.b0) && std::isfinite(c.b1) && std::isfinite(c.b2) &&
+                            std::isfinite(c.a1) && std::isfinite(c.a2);
+        if (!finite || !(std::abs(c.a2) < 1.0 && std::abs(c.a1) < 1.0 + c.a2)) {
+          why = "the redesigned notch is not finite and stable at this value";
+          return false;
+        }
+      } else {
+        designs_[i] = d;
+        sections_[i].retune(c);
+      }
+    }
+  }
+  return true;
 }
 
 void NotchFilter::describe(Json& out) const {

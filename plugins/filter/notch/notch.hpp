@@ -17,7 +17,8 @@
 //         w0 (15.8 Hz for 50 Hz, k = 0.1): a low-pass with a null, not a narrow notch (§4.1).
 //   depth (the textbook notch):  H(s) = (s^2 + 2 k zeta w s + w^2) / (s^2 + 2 zeta w s + w^2):
 //         gain k at f_notch, 1 at DC and at high frequency, width set by zeta.
-// Discretised by the bilinear transform prewarped at w (lode::math::tustin):
+// Discretised by the bilinear transform prewarped at w, in closed form (equal to lode::math::tustin
+// within 1e-12, tested; closed so that set_tunable() can redesign on the RT thread):
 //   s = c (z - 1)/(z + 1), c = w / tan(w T / 2), so H(e^{jwT}) = H(jw) exactly at f_notch.
 // For eq31 this is the spec's closed form (§4.3): Kp = c, b0 = b2 = k Kp^2 + w0^2,
 // b1 = 2 w0^2 - 2 k Kp^2, a0 = Kp^2 + 2 zeta w0 Kp + w0^2, a1 = 2 w0^2 - 2 Kp^2,
@@ -29,8 +30,15 @@
 // (out = in) at run time; the sections keep filtering in the background so that re-enabling
 // continues from a settled state instead of a stale one.
 //
+// Runtime parameters (`lode set`): enabled, and for a designed notch f_notch_hz, k and zeta
+// (every filtered channel). A retune recomputes the coefficients in closed form (no
+// allocation) and re-expresses the section's state for them from the last two inputs and
+// outputs, i.e. it switches as a direct form I would: the next output is the new difference
+// equation applied to the actual signal history, with no state-mismatch transient.
+//
 // Threads: configure()/activate()/describe() on the loader thread, step() on the RT thread;
-// set_enabled() from any thread (atomic flags).
+// set_enabled() from any thread (atomic flags); set_tunable() on the RT thread at a cycle
+// boundary.
 #pragma once
 
 #include <atomic>
@@ -53,11 +61,51 @@ const char* to_string(Form form);
 /// H(z) = (b0 + b1 z^-1 + b2 z^-2) / (1 + a1 z^-1 + a2 z^-2).
 using Coefficients = lode::math::BiquadCoefficients;
 
-/// Prewarped-Tustin design of the eq31 or depth form at rate_hz (configure time).
-Coefficients design(Form form, double f_notch_hz, double k, double zeta, double rate_hz);
+/// Prewarped-Tustin design of the eq31 or depth form at rate_hz. Closed form, no allocation:
+/// used by configure() and by set_tunable() on the RT thread.
+Coefficients design(Form form, double f_notch_hz, double k, double zeta, double rate_hz) noexcept;
 
-/// One channel's transposed direct form II section (shared with the other filter plugins).
-using Section = lode::math::BiquadSection;
+/// One channel's transposed direct form II section, the same recursion as
+/// lode::math::BiquadSection, that also remembers its last two inputs and outputs so that
+/// retune() can restate s1, s2 for new coefficients:
+///   s1 = b1 x(n) - a1 y(n) + b2 x(n-1) - a2 y(n-1),   s2 = b2 x(n) - a2 y(n),
+/// which is exactly the state the new recursion would have after that input/output history.
+class Section {
+ public:
+  void configure(const Coefficients& c) noexcept {
+    c_ = c;
+    reset();
+  }
+  void reset() noexcept { s1_ = s2_ = x1_ = x2_ = y1_ = y2_ = 0.0; }
+  /// y for input x; returns false (state unchanged) if the result is not finite.
+  bool step(double x, double& y) noexcept {
+    const double out = c_.b0 * x + s1_;
+    const double s1 = c_.b1 * x - c_.a1 * out + s2_;
+    const double s2 = c_.b2 * x - c_.a2 * out;
+    if (!std::isfinite(out) || !std::isfinite(s1) || !std::isfinite(s2)) return false;
+    s1_ = s1;
+    s2_ = s2;
+    x2_ = x1_;
+    x1_ = x;
+    y2_ = y1_;
+    y1_ = out;
+    y = out;
+    return true;
+  }
+  /// New coefficients from the next step(), continuing from the actual signal history.
+  void retune(const Coefficients& c) noexcept {
+    c_ = c;
+    s1_ = c.b1 * x1_ - c.a1 * y1_ + c.b2 * x2_ - c.a2 * y2_;
+    s2_ = c.b2 * x1_ - c.a2 * y1_;
+  }
+  [[nodiscard]] const Coefficients& coefficients() const noexcept { return c_; }
+
+ private:
+  Coefficients c_;
+  double s1_ = 0.0, s2_ = 0.0;
+  double x1_ = 0.0, x2_ = 0.0;  ///< x(n), x(n-1) after the last step
+  double y1_ = 0.0, y2_ = 0.0;  ///< y(n), y(n-1)
+};
 
 /// Per channel: what it was designed from (for describe()).
 struct ChannelDesign {
@@ -83,8 +131,18 @@ class NotchFilter final : public Block {
   bool set_enabled(std::size_t channel, bool enabled) noexcept;
   [[nodiscard]] bool enabled(std::size_t channel) const noexcept;
 
+  /// `lode set`: enabled (bool), and for a designed notch f_notch_hz, k, zeta.
+  [[nodiscard]] std::vector<Tunable> tunables() const override;
+  [[nodiscard]] double tunable_value(std::size_t index) const noexcept override;
+  bool set_tunable(std::size_t index, double value, const char*& why) noexcept override;
+
  private:
+  enum TunableIndex : std::size_t { kEnabled = 0, kFrequency = 1, kDepth = 2, kDamping = 3 };
+  /// The first filtered channel (whose design tunable_value() reports), channels_ if none.
+  [[nodiscard]] std::size_t first_filtered() const noexcept;
+
   double rate_hz_ = 0.0;
+  bool designed_ = false;  ///< f_notch_hz, k, zeta exist (not raw coefficients)
   std::size_t channels_ = 0;
   Elements elements_;
   std::vector<notch::ChannelDesign> designs_;

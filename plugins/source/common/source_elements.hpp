@@ -3,7 +3,7 @@
 //
 // Header-only and not a plugin (no CMakeLists.txt here): each source includes it with
 // `#include "../common/source_elements.hpp"`. Everything here runs in configure(), except
-// elapsed_s(), which is RT-safe.
+// elapsed_s() and the ElementTunables lookups, which are RT-safe.
 #pragma once
 
 #include <cmath>
@@ -15,6 +15,7 @@
 #include <string_view>
 #include <vector>
 
+#include "lode/block.hpp"
 #include "lode/params.hpp"
 #include "lode/port.hpp"
 
@@ -98,6 +99,63 @@ inline std::int64_t read_time_ns(Params& params, std::string_view key,
 /// The difference is taken in integers first, so long runs lose no resolution. RT-safe.
 inline double elapsed_s(std::int64_t time_ns, std::int64_t start_ns) noexcept {
   return static_cast<double>(time_ns - start_ns) * 1e-9;
+}
+
+/// Runtime parameters (`lode set`) that are one number per element of a per-element list
+/// key: `<key>.<element name>`, e.g. `offset.x`. The tunable index is
+/// group * elements + element, with the groups in the order they were added.
+class ElementTunables {
+ public:
+  struct Group {
+    std::string key;          ///< the YAML key, e.g. "amplitude"
+    std::string unit_suffix;  ///< appended to the element unit ("" or "/s"); unit_override wins
+    std::string unit_override;
+    double min = -1e300;
+    double max = 1e300;
+    std::string description;
+  };
+
+  /// Configure time.
+  void add(Group group) { groups_.push_back(std::move(group)); }
+
+  /// Off the RT thread, after configure().
+  [[nodiscard]] std::vector<Tunable> list(const Elements& elements) const {
+    std::vector<Tunable> out;
+    for (const Group& g : groups_) {
+      for (const Element& e : elements) {
+        Tunable t;
+        t.name = g.key + "." + e.name;
+        t.unit = g.unit_override.empty() ? e.unit + g.unit_suffix : g.unit_override;
+        t.min = g.min;
+        t.max = g.max;
+        t.description = g.description + " of " + e.name;
+        out.push_back(std::move(t));
+      }
+    }
+    return out;
+  }
+
+  /// Which group and element an index names; false if out of range. RT-safe.
+  [[nodiscard]] bool locate(std::size_t index, std::size_t elements, std::size_t& group,
+                            std::size_t& element) const noexcept {
+    if (elements == 0 || index >= groups_.size() * elements) return false;
+    group = index / elements;
+    element = index % elements;
+    return true;
+  }
+
+ private:
+  std::vector<Group> groups_;
+};
+
+/// The common refusals of a per-element source parameter; RT-safe. The command path has
+/// checked the range already; this also catches NaN and infinities from direct callers.
+inline bool accept_finite(double value, const char*& why) noexcept {
+  if (!std::isfinite(value)) {
+    why = "the value must be finite";
+    return false;
+  }
+  return true;
 }
 
 }  // namespace lode::plugins::source

@@ -12,13 +12,15 @@
 //          = offset + rate * tau             for 0 <= tau < D
 //          = offset + rate * D               for tau >= D (hold)
 //
-// Threads: configure()/activate() on the loader thread, step() on the RT thread.
+// Threads: configure()/activate() on the loader thread, step() on the RT thread;
+// set_tunable() on the RT thread at a cycle boundary.
 #pragma once
 
 #include <cstdint>
 #include <vector>
 
 #include "lode/block.hpp"
+#include "../common/source_elements.hpp"
 
 namespace lode::plugins {
 
@@ -29,14 +31,28 @@ class RampSource final : public Block {
   StepStatus step(const Tick& tick) noexcept override;
   void describe(Json& out) const override;
 
+  /// `lode set`: offset.<element> and rate.<element>. A new rate bends the ramp at the last
+  /// sample (the output stays continuous; only its slope changes), see rate_origin_ns_.
+  [[nodiscard]] std::vector<Tunable> tunables() const override;
+  [[nodiscard]] double tunable_value(std::size_t index) const noexcept override;
+  bool set_tunable(std::size_t index, double value, const char*& why) noexcept override;
+
  private:
   OutputPort out_;
   std::size_t size_ = 0;
+  Elements elements_;
+  source::ElementTunables tunables_;
   std::vector<double> offset_;
   std::vector<double> rate_;  ///< element unit per second
   std::int64_t start_ns_ = 0;
   bool has_duration_ = false;
   std::int64_t duration_ns_ = 0;
+  // Per element, the ramp is  value_at_origin + rate * (ramp time - rate_origin_ns): a rate
+  // change moves the origin to the last sample's ramp time and accumulates what the old rate
+  // had produced, so the output continues from where it was (both 0 until a rate change).
+  std::vector<std::int64_t> rate_origin_ns_;
+  std::vector<double> value_at_origin_;
+  std::int64_t last_ramp_ns_ = 0;  ///< clamped ramp time of the last step()
 };
 
 }  // namespace lode::plugins

@@ -13,6 +13,8 @@ Status StepSource::configure(ConfigureContext& ctx) {
   source::SourceElements elements = source::read_source_elements(params);
   size_ = elements.size();
   offset_ = elements.offset;
+  elements_ = elements.elements;
+  tunables_.add({"offset", "", "", -1e300, 1e300, "output before the first step"});
 
   const std::vector<Params> steps = params.items("steps");
   for (std::size_t i = 0; i < steps.size(); ++i) {
@@ -47,6 +49,25 @@ StepStatus StepSource::step(const Tick& tick) noexcept {
   const double* value = reached == 0 ? offset_.data() : &step_values_[(reached - 1) * size_];
   for (std::size_t i = 0; i < size_; ++i) out_[i] = value[i];
   return StepStatus::ok;
+}
+
+std::vector<Tunable> StepSource::tunables() const { return tunables_.list(elements_); }
+
+double StepSource::tunable_value(std::size_t index) const noexcept {
+  std::size_t group = 0, element = 0;
+  return tunables_.locate(index, size_, group, element) ? offset_[element] : 0.0;
+}
+
+bool StepSource::set_tunable(std::size_t index, double value, const char*& why) noexcept {
+  std::size_t group = 0, element = 0;
+  if (!tunables_.locate(index, size_, group, element)) {
+    why = "no such parameter";
+    return false;
+  }
+  if (!source::accept_finite(value, why)) return false;
+  // step() reads offset_ afresh each cycle: the next sample before the first step uses it.
+  offset_[element] = value;
+  return true;
 }
 
 void StepSource::describe(Json& out) const {

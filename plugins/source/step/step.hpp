@@ -11,13 +11,15 @@
 //        = steps[i].value         for steps[i].time_s <= t < steps[i+1].time_s
 // with t the scheduled time of the cycle (tick.time_ns), so runs are deterministic.
 //
-// Threads: configure()/activate() on the loader thread, step() on the RT thread.
+// Threads: configure()/activate() on the loader thread, step() on the RT thread;
+// set_tunable() on the RT thread at a cycle boundary.
 #pragma once
 
 #include <cstdint>
 #include <vector>
 
 #include "lode/block.hpp"
+#include "../common/source_elements.hpp"
 
 namespace lode::plugins {
 
@@ -28,9 +30,16 @@ class StepSource final : public Block {
   StepStatus step(const Tick& tick) noexcept override;
   void describe(Json& out) const override;
 
+  /// `lode set`: offset.<element> (the value before the first step).
+  [[nodiscard]] std::vector<Tunable> tunables() const override;
+  [[nodiscard]] double tunable_value(std::size_t index) const noexcept override;
+  bool set_tunable(std::size_t index, double value, const char*& why) noexcept override;
+
  private:
   OutputPort out_;
   std::size_t size_ = 0;
+  Elements elements_;
+  source::ElementTunables tunables_;
   std::vector<double> offset_;
   std::vector<std::int64_t> step_time_ns_;  ///< strictly increasing
   std::vector<double> step_values_;         ///< row-major: step x element

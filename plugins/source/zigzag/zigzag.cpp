@@ -15,6 +15,9 @@ Status ZigzagSource::configure(ConfigureContext& ctx) {
   offset_ = elements.offset;
   amplitude_ = source::read_per_element(params, "amplitude", size_);
   advance_ = source::read_per_element(params, "advance", size_, 0.0);
+  elements_ = elements.elements;
+  tunables_.add({"offset", "", "", -1e300, 1e300, "start point of the path"});
+  tunables_.add({"amplitude", "", "", -1e300, 1e300, "peak of the triangle sweep above offset"});
   const double period_s = params.number("period_s");
   if (!(period_s > 0.0 && period_s <= source::kMaxTimeS)) {
     params.fail("period_s", "must be within (0, 1e9] s, got " + source::number_text(period_s));
@@ -63,6 +66,27 @@ StepStatus ZigzagSource::step(const Tick& tick) noexcept {
     out_[i] = offset_[i] + amplitude_[i] * sweep + advance_[i] * progress;
   }
   return StepStatus::ok;
+}
+
+std::vector<Tunable> ZigzagSource::tunables() const { return tunables_.list(elements_); }
+
+double ZigzagSource::tunable_value(std::size_t index) const noexcept {
+  std::size_t group = 0, element = 0;
+  if (!tunables_.locate(index, size_, group, element)) return 0.0;
+  return group == 0 ? offset_[element] : amplitude_[element];
+}
+
+bool ZigzagSource::set_tunable(std::size_t index, double value, const char*& why) noexcept {
+  std::size_t group = 0, element = 0;
+  if (!tunables_.locate(index, size_, group, element)) {
+    why = "no such parameter";
+    return false;
+  }
+  if (!source::accept_finite(value, why)) return false;
+  // step() is a function of time only: the path from the next sample on is the one the new
+  // value describes (a new amplitude rescales the current sweep position).
+  (group == 0 ? offset_ : amplitude_)[element] = value;
+  return true;
 }
 
 void ZigzagSource::describe(Json& out) const {

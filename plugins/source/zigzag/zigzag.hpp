@@ -20,13 +20,15 @@
 // With `cycles` = N the path stops at tau = N * period_s and holds that value
 // (offset + 2 N advance, the sweeping axis back at offset).
 //
-// Threads: configure()/activate() on the loader thread, step() on the RT thread.
+// Threads: configure()/activate() on the loader thread, step() on the RT thread;
+// set_tunable() on the RT thread at a cycle boundary.
 #pragma once
 
 #include <cstdint>
 #include <vector>
 
 #include "lode/block.hpp"
+#include "../common/source_elements.hpp"
 
 namespace lode::plugins {
 
@@ -37,9 +39,16 @@ class ZigzagSource final : public Block {
   StepStatus step(const Tick& tick) noexcept override;
   void describe(Json& out) const override;
 
+  /// `lode set`: offset.<element> and amplitude.<element>, from the next sample on.
+  [[nodiscard]] std::vector<Tunable> tunables() const override;
+  [[nodiscard]] double tunable_value(std::size_t index) const noexcept override;
+  bool set_tunable(std::size_t index, double value, const char*& why) noexcept override;
+
  private:
   OutputPort out_;
   std::size_t size_ = 0;
+  Elements elements_;
+  source::ElementTunables tunables_;
   std::vector<double> offset_;
   std::vector<double> amplitude_;
   std::vector<double> advance_;

@@ -5,9 +5,13 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <numbers>
 #include <random>
 #include <string>
+#include <vector>
 
 #include "lode/testing/allocation_counter.hpp"
 #include "lode/testing/harness.hpp"
@@ -236,6 +240,199 @@ TEST(PidBlock, FaultsAndDoesNotAllocate) {
   h.input("measurement")[0] = NAN;
   EXPECT_EQ(h.step(), lode::StepStatus::fault);
   EXPECT_STREQ(h.block().fault_reason(), "non-finite measurement or reference");
+}
+
+// ---- Runtime parameters (lode set) ----
+
+/// Positional PID with the bumpless-transfer semantics the block promises for a gain change:
+/// u(k-1) and the filtered derivative Df are kept, the integrator absorbs the change.
+struct PositionalPid {
+  double kp, ki, kd, n_rad_s, t_s;
+  double integral = 0.0, df = 0.0, e1 = 0.0, d1 = 0.0, r1 = 0.0, y1 = 0.0, u1 = 0.0;
+  bool first = true;
+  double step(double r, double y) {
+    const double p = (2.0 - n_rad_s * t_s) / (2.0 + n_rad_s * t_s);
+    const double g = 2.0 * n_rad_s / (2.0 + n_rad_s * t_s);
+    const double e = r - y, d = r - y;
+    if (first) {
+      e1 = e, d1 = d, r1 = r, y1 = y;
+      integral = 0.0 - kp * (r - y);  // u(-1) = initial_output = 0
+      first = false;
+    }
+    integral += 0.5 * ki * t_s * (e + e1);
+    df = p * df + g * (d - d1);
+    u1 = kp * (r - y) + integral + kd * df;
+    e1 = e, d1 = d, r1 = r, y1 = y;
+    return u1;
+  }
+  void set_gains(double new_kp, double new_ki, double new_kd) {
+    integral = u1 - new_kp * (r1 - y1) - new_kd * df;
+    kp = new_kp, ki = new_ki, kd = new_kd;
+  }
+};
+
+TEST(PidTunables, GainsAndLimitsForEveryAxisAndEachAxis) {
+  lode::testing::BlockHarness h("controller.pid", "kp: 2\nki: [10, 20]\nkd: 0.01\nderivative_filter_rad_s: 300\n"
+                                                  "output_min: -5\noutput_max: 5\noutput_units: [V]\n", 1000.0);
+  h.feed("measurement", {{"x", "m"}, {"y", "m"}});
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  const std::vector<lode::Tunable> t = h.block().tunables();
+  std::vector<std::string> names;
+  for (const auto& tunable : t) names.push_back(tunable.name);
+  const std::vector<std::string> expected{"kp", "kp.x", "kp.y", "ki", "ki.x", "ki.y", "kd", "kd.x", "kd.y",
+                                          "output_min", "output_min.x", "output_min.y",
+                                          "output_max", "output_max.x", "output_max.y"};
+  EXPECT_EQ(names, expected);
+  ASSERT_EQ(t.size(), 15u);
+  EXPECT_EQ(t[0].unit, "V/m");
+  EXPECT_EQ(t[4].unit, "V/(m*s)");
+  EXPECT_EQ(t[8].unit, "V*s/m");
+  EXPECT_EQ(t[9].unit, "V");
+  EXPECT_FALSE(t[0].integer);
+  EXPECT_EQ(h.block().tunable_value(5), 20.0);   // ki.y
+  EXPECT_EQ(h.block().tunable_value(3), 10.0);   // ki: axis x's
+  EXPECT_EQ(h.block().tunable_value(14), 5.0);   // output_max.y
+
+  lode::testing::BlockHarness raw("controller.pid",
+                                  "coefficients: {numerator: [-623.9, 1020, -386.8], denominator: [1, -1.604, 0.603]}\n"
+                                  "output_min: 0.5\noutput_max: 3\n", kRate);
+  raw.feed("measurement", {{"gap", "m"}});
+  ASSERT_TRUE(raw.configure()) << raw.diagnostics();
+  const std::vector<lode::Tunable> limits = raw.block().tunables();
+  ASSERT_EQ(limits.size(), 2u) << "coefficients: only the limits";
+  EXPECT_EQ(limits[0].name, "output_min");
+  EXPECT_EQ(raw.block().tunable_value(1), 3.0);
+}
+
+TEST(PidTunables, GainChangesAreBumplessAndFollowThePositionalPid) {
+  const double rate = 1000.0, T = 1.0 / rate;
+  lode::testing::BlockHarness h("controller.pid", "kp: 2\nki: 50\nkd: 0.01\nderivative_filter_rad_s: 200\n", rate);
+  h.feed("measurement", {{"x", "m"}});
+  h.feed("reference", {{"x", "m"}});
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  auto measurement = h.input("measurement");
+  auto reference = h.input("reference");
+  PositionalPid model{2.0, 50.0, 0.01, 200.0, T};
+  double worst = 0.0, step_at_ki_switch = 0.0, naive_jump = 0.0;
+  for (int k = 0; k < 1200; ++k) {
+    const char* why = "";
+    if (k == 300) {  // ki 50 -> 120
+      naive_jump = std::abs((120.0 - 50.0) / 50.0 * (model.u1 - 2.0 * (model.r1 - model.y1) - 0.01 * model.df));
+      ASSERT_TRUE(h.block().set_tunable(1, 120.0, why)) << why;
+      model.set_gains(2.0, 120.0, 0.01);
+    }
+    if (k == 600) {  // kp 2 -> 0.5
+      ASSERT_TRUE(h.block().set_tunable(0, 0.5, why)) << why;
+      model.set_gains(0.5, 120.0, 0.01);
+    }
+    if (k == 900) {  // kd 0.01 -> 0.03 (the derivative filter is still ringing from the y step)
+      ASSERT_TRUE(h.block().set_tunable(2, 0.03, why)) << why;
+      model.set_gains(0.5, 120.0, 0.03);
+    }
+    const double r = k >= 50 ? 1e-3 : 0.0;
+    const double y = 5e-4 * std::sin(2 * std::numbers::pi * 3 * k * T) + (k >= 880 ? 2e-4 : 0.0);
+    measurement[0] = y;
+    reference[0] = r;
+    const double before = h.output("out")[0];
+    ASSERT_EQ(h.step(), lode::StepStatus::ok);
+    const double u = h.output("out")[0];
+    const double expected = model.step(r, y);
+    worst = std::max(worst, std::abs(u - expected));
+    if (k == 300) step_at_ki_switch = std::abs(u - before);
+  }
+  std::printf("ki 50 -> 120 at cycle 300: output step %.3g (a positional PID without bumpless transfer: %.3g); "
+              "worst |block - positional bumpless model| over kp, ki, kd switches %.3g\n",
+              step_at_ki_switch, naive_jump, worst);
+  EXPECT_LT(worst, 1e-12);
+  EXPECT_LT(step_at_ki_switch, 0.1 * naive_jump);
+  EXPECT_EQ(h.block().tunable_value(0), 0.5);
+  EXPECT_EQ(h.block().tunable_value(1), 120.0);
+  EXPECT_EQ(h.block().tunable_value(2), 0.03);
+}
+
+TEST(PidTunables, ConstantErrorKeepsRampingAtTheNewIntegralRate) {
+  lode::testing::BlockHarness h("controller.pid", "kp: 3\nki: 10\n", kRate);
+  h.feed("measurement", {{"x", "m"}});
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  h.input("measurement")[0] = -0.2;  // e = 0.2 without a reference
+  for (int k = 0; k < 100; ++k) h.step();
+  const double u_before = h.output("out")[0];
+  const char* why = "";
+  ASSERT_TRUE(h.block().set_tunable(1, 40.0, why)) << why;  // ki
+  ASSERT_TRUE(h.block().set_tunable(0, 9.0, why)) << why;   // kp: a constant error gives no P increment
+  h.step();
+  EXPECT_NEAR(h.output("out")[0] - u_before, 40.0 * kT * 0.2, 1e-14);
+  h.step();
+  EXPECT_NEAR(h.output("out")[0] - u_before, 2 * 40.0 * kT * 0.2, 1e-14);
+}
+
+TEST(PidTunables, LimitsApplyFromTheNextOutputAndRefusalsChangeNothing) {
+  const std::string params = "kp: 2\nki: 400\noutput_min: -5\noutput_max: 5\n";
+  lode::testing::BlockHarness h("controller.pid", params, kRate);
+  lode::testing::BlockHarness twin("controller.pid", params, kRate);
+  for (auto* b : {&h, &twin}) {
+    b->feed("measurement", {{"x", "m"}, {"y", "m"}});
+    ASSERT_TRUE(b->configure()) << b->diagnostics();
+    ASSERT_TRUE(b->activate());
+  }
+  auto run = [&](lode::testing::BlockHarness& b) {
+    b.input("measurement")[0] = -1.0;
+    b.input("measurement")[1] = -1.0;
+    return b.step();
+  };
+  for (int k = 0; k < 20; ++k) {
+    run(h);
+    run(twin);
+  }
+  ASSERT_GT(h.output("out")[1], 2.0);
+  const char* why = "";
+  // Refusals first: nothing may change.
+  EXPECT_FALSE(h.block().set_tunable(14, -6.0, why)) << "output_max.y below output_min";
+  EXPECT_NE(std::string(why).find("output_min"), std::string::npos) << why;
+  EXPECT_FALSE(h.block().set_tunable(10, 5.0, why)) << "output_min = output_max";
+  EXPECT_FALSE(h.block().set_tunable(0, std::nan(""), why));
+  EXPECT_FALSE(h.block().set_tunable(6, 1.0, why)) << "kd without a derivative filter";
+  EXPECT_NE(std::string(why).find("derivative_filter_rad_s"), std::string::npos) << why;
+  EXPECT_FALSE(h.block().set_tunable(15, 1.0, why));
+  for (int k = 0; k < 20; ++k) {
+    run(h);
+    run(twin);
+    ASSERT_EQ(h.output("out")[0], twin.output("out")[0]);
+    ASSERT_EQ(h.output("out")[1], twin.output("out")[1]);
+  }
+  EXPECT_EQ(h.block().tunable_value(14), 5.0);
+  // output_max.y = 2: y's next output sits on the new limit, x's is untouched.
+  ASSERT_TRUE(h.block().set_tunable(14, 2.0, why)) << why;
+  run(h);
+  run(twin);
+  EXPECT_EQ(h.output("out")[1], 2.0);
+  EXPECT_EQ(h.output("out")[0], twin.output("out")[0]);
+}
+
+TEST(PidTunables, SetTunableAllocatesNothing) {
+  lode::testing::BlockHarness h("controller.pid", "kp: 2\nki: 40\nkd: 0.01\nderivative_filter_rad_s: 300\n"
+                                                  "output_min: -5\noutput_max: 5\n", kRate);
+  h.feed("measurement", {{"x", "m"}, {"y", "m"}});
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  lode::Block& block = h.block();
+  auto measurement = h.input("measurement");
+  const char* why = "";
+  int accepted = 0;
+  const auto before = lode::testing::allocation_count();
+  for (int k = 0; k < 1000; ++k) {
+    for (std::size_t index = 0; index < 15; ++index) {
+      const double value = index >= 12 ? 5.0 + (k % 2) : index >= 9 ? -5.0 - (k % 2) : 1.0 + 0.1 * (k % 3);
+      accepted += block.set_tunable(index, value, why) ? 1 : 0;
+    }
+    (void)block.set_tunable(12, -10.0, why);
+    measurement[0] = 1e-3 * std::sin(0.01 * k);
+    h.step();
+  }
+  EXPECT_EQ(lode::testing::allocation_count() - before, 0u);
+  EXPECT_EQ(accepted, 15000);
 }
 
 }  // namespace

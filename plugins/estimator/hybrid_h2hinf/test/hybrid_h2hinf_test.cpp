@@ -491,5 +491,97 @@ TEST(HybridBlock, StepAllocatesNothing) {
   EXPECT_EQ(lode::testing::allocation_count() - before, 0u);
 }
 
+// ---- Runtime parameter `d` (lode set) ----
+
+TEST(HybridTunables, ReportsDInZeroOne) {
+  Rig rig("q: 1.0e3\nr: 1.0e-6\nhinf_theta: 5.0e5\nd: 0.7");
+  ASSERT_TRUE(rig.status) << rig.h.diagnostics();
+  const std::vector<Tunable> t = rig.h.block().tunables();
+  ASSERT_EQ(t.size(), 1u);
+  EXPECT_EQ(t[0].name, "d");
+  EXPECT_EQ(t[0].unit, "1");
+  EXPECT_EQ(t[0].min, 0.0);
+  EXPECT_EQ(t[0].max, 1.0);
+  EXPECT_FALSE(t[0].integer);
+  EXPECT_DOUBLE_EQ(rig.h.block().tunable_value(0), 0.7);
+}
+
+TEST(HybridTunables, SetDTakesEffectAtTheNextStepWithoutResettingTheState) {
+  Rig rig("q: 1.0e3\nr: 1.0e-6\nhinf_theta: 5.0e5\nd: 1.0");
+  ASSERT_TRUE(rig.status) << rig.h.diagnostics();
+  const Vector3 kk = rig.block().kalman_gain(0);
+  const Vector3 kh = rig.block().hinf_gain(0);
+  const std::vector<double> y = noisy_signal(2000, 5);
+  constexpr std::size_t kSwitch = 1000;
+  constexpr double kNewD = 0.3;
+  // Eq. 24 written out: gain K^K until kSwitch, then the eq. 25 blend, state carried over.
+  Matrix3 phi;
+  phi << 1, kT, kT * kT / 2, 0, 1, kT, 0, 0, 1;
+  Vector3 x(y.front(), 0.0, 0.0);
+  double worst = 0.0;
+  double jump_at_switch = 0.0;
+  for (std::size_t k = 0; k < y.size(); ++k) {
+    if (k == kSwitch) {
+      const char* why = "";
+      ASSERT_TRUE(rig.h.block().set_tunable(0, kNewD, why)) << why;
+      EXPECT_DOUBLE_EQ(rig.h.block().tunable_value(0), kNewD);
+    }
+    const Vector3 gain = k < kSwitch ? kk : Vector3(kNewD * kk + (1.0 - kNewD) * kh);
+    const Vector3 prior = phi * x;
+    x = prior + gain * (y[k] - prior(0));
+    const double previous = rig.pose();
+    ASSERT_EQ(rig.step(y[k]), StepStatus::ok);
+    worst = std::max(worst, std::abs(rig.pose() - x(0)));
+    if (k == kSwitch) jump_at_switch = std::abs(rig.pose() - previous);
+  }
+  std::printf("d 1 -> 0.3 at cycle %zu: worst |pose - reference| = %.3g m, step at the switch %.3g m\n", kSwitch,
+              worst, jump_at_switch);
+  EXPECT_LT(worst, 1e-12);
+  // The estimate moves by one innovation, never by a reset (noise std 1e-6 m in noisy_signal).
+  EXPECT_LT(jump_at_switch, 1e-5);
+}
+
+TEST(HybridTunables, RefusedDChangesNothing) {
+  const std::string pair = "q: 1.0e3\nr: 1.0e-6\nkalman_gain: [1.27, 438.0, 870000.0]\nhinf_gain: [0.376, 82.5, 11860.0]\n";
+  Rig rig(pair + "d: 1.0");
+  Rig twin(pair + "d: 1.0");
+  ASSERT_TRUE(rig.status) << rig.h.diagnostics();
+  ASSERT_TRUE(twin.status);
+  const std::vector<double> y = noisy_signal(600, 9);
+  for (std::size_t k = 0; k < y.size(); ++k) {
+    if (k == 300) {
+      const char* why = "";
+      EXPECT_FALSE(rig.h.block().set_tunable(0, 0.5, why));
+      EXPECT_NE(std::string(why).find("unstable"), std::string::npos) << why;
+      why = "";
+      EXPECT_FALSE(rig.h.block().set_tunable(0, std::nan(""), why));
+      EXPECT_STRNE(why, "");
+      why = "";
+      EXPECT_FALSE(rig.h.block().set_tunable(7, 0.5, why));
+      EXPECT_STRNE(why, "");
+      EXPECT_DOUBLE_EQ(rig.h.block().tunable_value(0), 1.0);
+    }
+    rig.step(y[k]);
+    twin.step(y[k]);
+    ASSERT_EQ(rig.pose(), twin.pose()) << "cycle " << k;
+  }
+}
+
+TEST(HybridTunables, SetTunableAllocatesNothing) {
+  Rig rig(kPaperParams, kSixAxes);
+  ASSERT_TRUE(rig.status) << rig.h.diagnostics();
+  Block& block = rig.h.block();
+  const char* why = "";
+  int accepted = 0;
+  const auto before = lode::testing::allocation_count();
+  for (int k = 0; k < 1000; ++k) {
+    accepted += block.set_tunable(0, (k % 2) ? 0.2 : 0.9, why) ? 1 : 0;
+    (void)block.set_tunable(0, 2.0, why);  // refused: a static reason, no message built
+    rig.step(1e-6 * std::sin(k * 0.1));
+  }
+  EXPECT_EQ(lode::testing::allocation_count() - before, 0u);
+  EXPECT_EQ(accepted, 1000);
+}
+
 }  // namespace
 }  // namespace lode::plugins

@@ -209,5 +209,74 @@ TEST(FilterBiquad, FaultsOnNonFiniteInputAndDoesNotAllocate) {
   EXPECT_STREQ(h.block().fault_reason(), "non-finite input");
 }
 
+// --- runtime parameter (lode set) ---------------------------------------------------------
+
+TEST(FilterBiquadTunables, EnabledIsABoolAndSwitchesBypassAtTheNextStep) {
+  BlockHarness h("filter.biquad", "type: lowpass\nf_hz: 10\nchannels: [b]\n", 1000.0);
+  h.feed("in", {{"a", "V"}, {"b", "V"}});
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  const std::vector<Tunable> t = h.block().tunables();
+  ASSERT_EQ(t.size(), 1u);
+  EXPECT_EQ(t[0].name, "enabled");
+  EXPECT_EQ(t[0].unit, "bool");
+  EXPECT_TRUE(t[0].integer);
+  EXPECT_EQ(t[0].min, 0.0);
+  EXPECT_EQ(t[0].max, 1.0);
+  EXPECT_EQ(h.block().tunable_value(0), 1.0);
+  const auto in = h.input("in");
+  in[0] = in[1] = 1.0;
+  ASSERT_EQ(h.step(), StepStatus::ok);
+  EXPECT_LT(h.output("out")[1], 0.01);
+  const char* why = "";
+  ASSERT_TRUE(h.block().set_tunable(0, 0.0, why)) << why;
+  EXPECT_EQ(h.block().tunable_value(0), 0.0);
+  ASSERT_EQ(h.step(), StepStatus::ok);
+  EXPECT_EQ(h.output("out")[1], 1.0) << "bypassed: out = in";
+  ASSERT_TRUE(h.block().set_tunable(0, 1.0, why)) << why;
+  ASSERT_EQ(h.step(), StepStatus::ok);
+  EXPECT_LT(h.output("out")[1], 0.1) << "filtered again from the section's own state";
+}
+
+TEST(FilterBiquadTunables, RefusedValuesChangeNothing) {
+  BlockHarness h("filter.biquad", "type: lowpass\nf_hz: 10\n", 1000.0);
+  h.feed("in", {{"a", "V"}});
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  const char* why = "";
+  EXPECT_FALSE(h.block().set_tunable(0, 0.5, why));
+  EXPECT_STRNE(why, "");
+  why = "";
+  EXPECT_FALSE(h.block().set_tunable(0, std::nan(""), why));
+  EXPECT_STRNE(why, "");
+  why = "";
+  EXPECT_FALSE(h.block().set_tunable(1, 0.0, why));
+  EXPECT_STRNE(why, "");
+  EXPECT_EQ(h.block().tunable_value(0), 1.0);
+  h.input("in")[0] = 1.0;
+  ASSERT_EQ(h.step(), StepStatus::ok);
+  EXPECT_LT(h.output("out")[0], 0.01) << "still filtering";
+}
+
+TEST(FilterBiquadTunables, SetTunableAllocatesNothing) {
+  BlockHarness h("filter.biquad", "type: bandpass\nf_hz: [50, 70]\nq: 3\n", 800.0);
+  h.feed("in", {{"x", "m"}, {"y", "m"}});
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  Block& block = h.block();
+  const auto in = h.input("in");
+  const char* why = "";
+  int accepted = 0;
+  const std::size_t before = lode::testing::allocation_count();
+  for (int k = 0; k < 1000; ++k) {
+    accepted += block.set_tunable(0, (k % 2) ? 1.0 : 0.0, why) ? 1 : 0;
+    (void)block.set_tunable(0, 0.5, why);
+    in[0] = std::sin(0.4 * k);
+    h.step();
+  }
+  EXPECT_EQ(lode::testing::allocation_count() - before, 0u);
+  EXPECT_EQ(accepted, 1000);
+}
+
 }  // namespace
 }  // namespace lode::plugins

@@ -292,5 +292,200 @@ TEST(FilterNotch, FaultsOnNonFiniteInputAndDoesNotAllocate) {
   EXPECT_EQ(h.output("out")[0], previous) << "a fault writes nothing";
 }
 
+// --- runtime parameters (lode set) --------------------------------------------------------
+
+TEST(FilterNotchTunables, DesignedNotchOffersEnabledFrequencyKAndZeta) {
+  BlockHarness h("filter.notch", "f_notch_hz: 50\nk: 0.1\nzeta: 0.5\nchannels: [x, y]\n", 800.0);
+  h.feed("in", kPlanar);
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  const std::vector<Tunable> t = h.block().tunables();
+  ASSERT_EQ(t.size(), 4u);
+  EXPECT_EQ(t[0].name, "enabled");
+  EXPECT_EQ(t[0].unit, "bool");
+  EXPECT_TRUE(t[0].integer);
+  EXPECT_EQ(t[0].min, 0.0);
+  EXPECT_EQ(t[0].max, 1.0);
+  EXPECT_EQ(t[1].name, "f_notch_hz");
+  EXPECT_EQ(t[1].unit, "Hz");
+  EXPECT_EQ(t[1].min, 0.0);
+  EXPECT_EQ(t[1].max, 400.0);
+  EXPECT_EQ(t[2].name, "k");
+  EXPECT_EQ(t[3].name, "zeta");
+  EXPECT_EQ(h.block().tunable_value(0), 1.0);
+  EXPECT_EQ(h.block().tunable_value(1), 50.0);
+  EXPECT_EQ(h.block().tunable_value(2), 0.1);
+  EXPECT_EQ(h.block().tunable_value(3), 0.5);
+
+  BlockHarness raw("filter.notch", "coefficients: [0.09318, -0.1733, 0.09318, -1.792, 0.8047]\n", 800.0);
+  raw.feed("in", kPlanar);
+  ASSERT_TRUE(raw.configure()) << raw.diagnostics();
+  ASSERT_EQ(raw.block().tunables().size(), 1u) << "raw coefficients: only enabled";
+  const char* why = "";
+  EXPECT_FALSE(raw.block().set_tunable(1, 60.0, why));
+  EXPECT_NE(std::string(why).find("raw coefficients"), std::string::npos) << why;
+}
+
+TEST(FilterNotchTunables, ClosedFormDesignEqualsLodeMathTustin) {
+  for (const double fs : {800.0, 1000.0, 2000.0}) {
+    for (const double f : {5.0, 50.0, 0.45 * fs}) {
+      const double w = 2 * kPi * f;
+      const double w0 = w * std::sqrt(0.1);
+      const auto eq31 = lode::math::tustin(lode::math::TransferFunction{{0.1, 0.0, w0 * w0}, {1.0, 2 * 0.5 * w0, w0 * w0}}, 1 / fs, w);
+      const auto depth = lode::math::tustin(lode::math::TransferFunction{{1.0, 2 * 0.05 * 0.3 * w, w * w}, {1.0, 2 * 0.3 * w, w * w}}, 1 / fs, w);
+      const notch::Coefficients a = notch::design(notch::Form::eq31, f, 0.1, 0.5, fs);
+      const notch::Coefficients b = notch::design(notch::Form::depth, f, 0.05, 0.3, fs);
+      const double tol = 1e-12;
+      EXPECT_NEAR(a.b0, eq31.num[0], tol);
+      EXPECT_NEAR(a.b1, eq31.num[1], tol);
+      EXPECT_NEAR(a.b2, eq31.num[2], tol);
+      EXPECT_NEAR(a.a1, eq31.den[1], tol);
+      EXPECT_NEAR(a.a2, eq31.den[2], tol);
+      EXPECT_NEAR(b.b0, depth.num[0], tol);
+      EXPECT_NEAR(b.b1, depth.num[1], tol);
+      EXPECT_NEAR(b.b2, depth.num[2], tol);
+      EXPECT_NEAR(b.a1, depth.den[1], tol);
+      EXPECT_NEAR(b.a2, depth.den[2], tol);
+    }
+  }
+}
+
+TEST(FilterNotchTunables, RetuneTakesEffectAtTheNextStepFromTheSignalHistory) {
+  const double fs = 800.0;
+  BlockHarness h("filter.notch", "form: depth\nf_notch_hz: 50\nk: 0.01\nzeta: 0.3\nchannels: [x]\n", fs);
+  h.feed("in", kPlanar);
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  const auto in = h.input("in");
+  auto input = [&](int k) { return 2e-6 + 1e-5 * std::sin(2 * kPi * 60 * k / fs); };  // DC + a 60 Hz line
+  std::vector<double> x, y;
+  constexpr int kSwitch = 1600;
+  for (int k = 0; k < kSwitch; ++k) {
+    in[0] = input(k);
+    ASSERT_EQ(h.step(), StepStatus::ok);
+    x.push_back(in[0]);
+    y.push_back(h.output("out")[0]);
+  }
+  // 60 Hz passes the 50 Hz notch almost untouched.
+  const std::vector<double> before(y.end() - 800, y.end());
+  const double line_before = std::abs(component(before, 60, fs));
+  const char* why = "";
+  ASSERT_TRUE(h.block().set_tunable(1, 60.0, why)) << why;
+  EXPECT_EQ(h.block().tunable_value(1), 60.0);
+  const Json described = h.describe();
+  const Json& c = member(described, "channels").elements().at(0);
+  const std::vector<double> b = numbers_of(member(c, "b"));
+  const std::vector<double> a = numbers_of(member(c, "a"));
+  EXPECT_NEAR(member(c, "gain_at_f_notch_db").as_number(), 20 * std::log10(0.01), 1e-9) << "redesigned at 60 Hz";
+  // The next output is the new difference equation on the actual history (direct form I switch).
+  in[0] = input(kSwitch);
+  ASSERT_EQ(h.step(), StepStatus::ok);
+  const double expected = b[0] * in[0] + b[1] * x[kSwitch - 1] + b[2] * x[kSwitch - 2] - a[1] * y[kSwitch - 1] -
+                          a[2] * y[kSwitch - 2];
+  EXPECT_NEAR(h.output("out")[0], expected, 1e-18);
+  std::vector<double> after;
+  for (int k = kSwitch + 1; k < kSwitch + 2400; ++k) {
+    in[0] = input(k);
+    ASSERT_EQ(h.step(), StepStatus::ok);
+    if (k >= kSwitch + 1600) after.push_back(h.output("out")[0]);
+  }
+  const double line_after = std::abs(component(after, 60, fs));
+  std::printf("60 Hz line through the notch: %.3g m at 50 Hz, %.3g m after lode set f_notch_hz 60\n", line_before,
+              line_after);
+  EXPECT_GT(line_before, 0.4e-5) << "60 Hz is on the 50 Hz notch's skirt (zeta = 0.3): about half passes";
+  EXPECT_NEAR(line_after, 1e-7, 2e-9) << "the depth form's gain k = 0.01 at the new notch";
+}
+
+TEST(FilterNotchTunables, RetuningAtDcHasNoTransient) {
+  // A settled DC level through a notch of DC gain 1: re-expressing the state from the history
+  // keeps the output exactly at the level; keeping the old state would kick the output.
+  BlockHarness h("filter.notch", "f_notch_hz: 50\nchannels: [x]\n", 800.0);
+  h.feed("in", kPlanar);
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  const auto in = h.input("in");
+  in[0] = 3e-3;
+  for (int k = 0; k < 4000; ++k) h.step();
+  ASSERT_NEAR(h.output("out")[0], 3e-3, 1e-15);
+  const char* why = "";
+  ASSERT_TRUE(h.block().set_tunable(1, 120.0, why)) << why;
+  ASSERT_TRUE(h.block().set_tunable(3, 0.2, why)) << why;
+  ASSERT_TRUE(h.block().set_tunable(2, 0.3, why)) << why;
+  double worst = 0.0;
+  for (int k = 0; k < 2000; ++k) {
+    h.step();
+    worst = std::max(worst, std::abs(h.output("out")[0] - 3e-3));
+  }
+  std::printf("DC 3 mm through three retunes: worst deviation %.3g m\n", worst);
+  EXPECT_LT(worst, 1e-15);
+}
+
+TEST(FilterNotchTunables, RefusedValuesChangeNothing) {
+  const double fs = 800.0;
+  BlockHarness h("filter.notch", "f_notch_hz: 50\nchannels: [x]\n", fs);
+  BlockHarness twin("filter.notch", "f_notch_hz: 50\nchannels: [x]\n", fs);
+  for (BlockHarness* b : {&h, &twin}) {
+    b->feed("in", kPlanar);
+    ASSERT_TRUE(b->configure()) << b->diagnostics();
+    ASSERT_TRUE(b->activate());
+  }
+  for (int k = 0; k < 1000; ++k) {
+    if (k == 300) {
+      const char* why = "";
+      EXPECT_FALSE(h.block().set_tunable(1, 400.0, why)) << "Nyquist at 800 Hz";
+      EXPECT_NE(std::string(why).find("Nyquist"), std::string::npos) << why;
+      EXPECT_FALSE(h.block().set_tunable(1, 0.0, why));
+      EXPECT_FALSE(h.block().set_tunable(2, 0.0, why));
+      EXPECT_FALSE(h.block().set_tunable(3, -1.0, why));
+      EXPECT_FALSE(h.block().set_tunable(1, std::nan(""), why));
+      EXPECT_FALSE(h.block().set_tunable(0, 0.5, why));
+      EXPECT_FALSE(h.block().set_tunable(4, 1.0, why));
+      EXPECT_EQ(h.block().tunable_value(1), 50.0);
+      EXPECT_EQ(h.block().tunable_value(0), 1.0);
+    }
+    h.input("in")[0] = twin.input("in")[0] = std::sin(0.37 * k);
+    h.step();
+    twin.step();
+    ASSERT_EQ(h.output("out")[0], twin.output("out")[0]) << k;
+  }
+}
+
+TEST(FilterNotchTunables, EnabledSwitchesBypass) {
+  BlockHarness h("filter.notch", "f_notch_hz: 50\nchannels: [x]\n", 800.0);
+  h.feed("in", kPlanar);
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  const char* why = "";
+  ASSERT_TRUE(h.block().set_tunable(0, 0.0, why)) << why;
+  EXPECT_EQ(h.block().tunable_value(0), 0.0);
+  h.input("in")[0] = 1.0;
+  h.step();
+  EXPECT_EQ(h.output("out")[0], 1.0) << "bypassed: out = in";
+  ASSERT_TRUE(h.block().set_tunable(0, 1.0, why)) << why;
+  h.step();
+  EXPECT_NE(h.output("out")[0], 1.0) << "filtering again (a unit step is still settling)";
+}
+
+TEST(FilterNotchTunables, SetTunableAllocatesNothing) {
+  BlockHarness h("filter.notch", "f_notch_hz: [50, 50, 60]\n", 800.0);
+  h.feed("in", kPlanar);
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  Block& block = h.block();
+  const auto in = h.input("in");
+  const char* why = "";
+  int accepted = 0;
+  const std::size_t before = lode::testing::allocation_count();
+  for (int k = 0; k < 1000; ++k) {
+    accepted += block.set_tunable(1, (k % 2) ? 50.0 : 60.0, why) ? 1 : 0;
+    accepted += block.set_tunable(3, (k % 2) ? 0.5 : 0.3, why) ? 1 : 0;
+    accepted += block.set_tunable(0, (k % 3) ? 1.0 : 0.0, why) ? 1 : 0;
+    (void)block.set_tunable(1, 400.0, why);
+    in[0] = std::sin(0.3 * k);
+    h.step();
+  }
+  EXPECT_EQ(lode::testing::allocation_count() - before, 0u);
+  EXPECT_EQ(accepted, 3000);
+}
+
 }  // namespace
 }  // namespace lode::plugins

@@ -3,8 +3,10 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <string>
 
+#include "lode/testing/allocation_counter.hpp"
 #include "lode/testing/harness.hpp"
 
 namespace {
@@ -129,6 +131,72 @@ TEST(SourceStep, DescribeListsTheSteps) {
   ASSERT_NE(d.find("steps"), nullptr);
   ASSERT_EQ(d.find("steps")->elements().size(), 1u);
   EXPECT_EQ(d.find("steps")->elements()[0].find("time_s")->as_number(), 0.5);
+}
+
+/// set_tunable() (accepted and refused) and step() together allocate nothing.
+void expect_no_allocation(BlockHarness& h, std::size_t index, double a, double b) {
+  lode::Block& block = h.block();
+  const char* why = "";
+  int accepted = 0;
+  const auto before = lode::testing::allocation_count();
+  for (int k = 0; k < 1000; ++k) {
+    accepted += block.set_tunable(index, (k % 2) ? a : b, why) ? 1 : 0;
+    (void)block.set_tunable(index, std::nan(""), why);
+    (void)block.set_tunable(1000000, 1.0, why);
+    h.step();
+  }
+  EXPECT_EQ(lode::testing::allocation_count() - before, 0u);
+  EXPECT_EQ(accepted, 1000);
+}
+
+// ---- Runtime parameters (lode set) ----
+
+TEST(SourceStepTunables, OffsetPerElementWithItsUnit) {
+  BlockHarness h("source.step", "names: [x, theta_z]\nunits: [m, rad]\noffset: [1e-3, 0]\n"
+                                "steps: [{time_s: 0.5, value: [2e-3, 1e-3]}]\n", 1000.0);
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  const auto t = h.block().tunables();
+  ASSERT_EQ(t.size(), 2u);
+  EXPECT_EQ(t[0].name, "offset.x");
+  EXPECT_EQ(t[0].unit, "m");
+  EXPECT_EQ(t[1].name, "offset.theta_z");
+  EXPECT_EQ(t[1].unit, "rad");
+  EXPECT_FALSE(t[0].integer);
+  EXPECT_LE(t[0].min, -1e300);
+  EXPECT_GE(t[0].max, 1e300);
+  EXPECT_DOUBLE_EQ(h.block().tunable_value(0), 1e-3);
+}
+
+TEST(SourceStepTunables, NewOffsetAppliesFromTheNextSampleAndRefusalsChangeNothing) {
+  BlockHarness h("source.step", "names: [x, theta_z]\nunits: [m, rad]\noffset: [1e-3, 0]\n"
+                                "steps: [{time_s: 0.5, value: [2e-3, 1e-3]}]\n", 1000.0);
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  for (int k = 0; k < 10; ++k) h.step();
+  EXPECT_EQ(h.output("out")[0], 1e-3);
+  const char* why = "";
+  ASSERT_TRUE(h.block().set_tunable(0, -4e-3, why)) << why;
+  EXPECT_EQ(h.output("out")[0], 1e-3) << "nothing changes before the next step";
+  h.step();
+  EXPECT_EQ(h.output("out")[0], -4e-3);
+  EXPECT_EQ(h.output("out")[1], 0.0);
+  EXPECT_FALSE(h.block().set_tunable(1, std::nan(""), why));
+  EXPECT_STRNE(why, "");
+  why = "";
+  EXPECT_FALSE(h.block().set_tunable(2, 1.0, why));
+  EXPECT_STRNE(why, "");
+  h.step();
+  EXPECT_EQ(h.output("out")[1], 0.0);
+  EXPECT_EQ(h.block().tunable_value(1), 0.0);
+  while (h.tick().cycle < 500) h.step();
+  EXPECT_EQ(h.output("out")[0], 2e-3) << "the steps' absolute values are not offset";
+}
+
+TEST(SourceStepTunables, SetTunableAllocatesNothing) {
+  BlockHarness h("source.step", "names: [x]\nunits: [m]\nsteps: [{time_s: 0.5, value: [2e-3]}]\n", 1000.0);
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  expect_no_allocation(h, 0, 1e-3, -1e-3);
 }
 
 }  // namespace
