@@ -1,0 +1,431 @@
+// lodestone::record: HDF5 recordings round-trip bit for bit, count lost samples, survive a
+// crash after flush(), and write the files tests/record/read_recording.py reads with h5py.
+#include "lode/record/hdf5_recorder.hpp"
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <bit>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <random>
+
+namespace lode::record {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string scratch_path(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("lode_record_test_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  return (dir / name).string();
+}
+
+std::uint64_t bits(double value) { return std::bit_cast<std::uint64_t>(value); }
+
+/// Doubles with arbitrary bit patterns (NaN payloads, signalling NaNs, subnormals, ±Inf,
+/// -0.0): a round trip must preserve every bit, not just compare equal.
+class AwkwardDoubles {
+ public:
+  double next() {
+    const std::uint64_t pick = engine_() % 16;
+    if (pick == 0) return std::bit_cast<double>(engine_());  // any pattern
+    // NaN with a payload, signalling or quiet, then a negative quiet NaN with a payload.
+    if (pick == 1) return std::bit_cast<double>(0x7FF0000000000000ULL | (engine_() & 0x000FFFFFFFFFFFFFULL) | 1ULL);
+    if (pick == 2) return std::bit_cast<double>(0xFFF8000000000000ULL | (engine_() & 0x0007FFFFFFFFFFFFULL));
+    if (pick == 3)
+      return (engine_() & 1) ? std::numeric_limits<double>::infinity() : -std::numeric_limits<double>::infinity();
+    if (pick == 4) return std::bit_cast<double>(engine_() & 0x000FFFFFFFFFFFFFULL);  // subnormal
+    if (pick == 5) return -0.0;
+    return std::uniform_real_distribution<double>(-1e3, 1e3)(engine_);
+  }
+
+ private:
+  std::mt19937_64 engine_{20261122};
+};
+
+void expect_same_info(const SeriesInfo& expected, const SeriesInfo& actual) {
+  EXPECT_EQ(actual.name, expected.name);
+  EXPECT_EQ(actual.topic, expected.topic);
+  EXPECT_EQ(actual.kind, expected.kind);
+  EXPECT_EQ(actual.names, expected.names);
+  EXPECT_EQ(actual.units, expected.units);
+  EXPECT_EQ(bits(actual.rate_hz), bits(expected.rate_hz));
+  EXPECT_EQ(bits(actual.pipeline_rate_hz), bits(expected.pipeline_rate_hz));
+  EXPECT_EQ(actual.decimation, expected.decimation);
+}
+
+struct ExpectedSeries {
+  SeriesInfo info;
+  std::vector<std::uint64_t> cycle;
+  std::vector<std::int64_t> stamp_ns, captured_ns;
+  std::vector<double> values;
+};
+
+void expect_same_rows(const ExpectedSeries& expected, const SeriesData& actual, std::size_t rows) {
+  ASSERT_GE(actual.rows(), rows) << actual.info.name;
+  ASSERT_GE(expected.cycle.size(), rows);
+  const std::size_t width = expected.info.names.size();
+  std::size_t mismatches = 0;
+  for (std::size_t row = 0; row < rows; ++row) {
+    mismatches += actual.cycle[row] != expected.cycle[row];
+    mismatches += actual.stamp_ns[row] != expected.stamp_ns[row];
+    mismatches += actual.captured_ns[row] != expected.captured_ns[row];
+    for (std::size_t v = 0; v < width; ++v) {
+      mismatches += bits(actual.values[row * width + v]) != bits(expected.values[row * width + v]);
+    }
+  }
+  EXPECT_EQ(mismatches, 0U) << actual.info.name;
+}
+
+TEST(Hdf5RecorderTest, RoundTripIsBitIdentical) {
+  const std::string path = scratch_path("round_trip.h5");
+  auto recorder = Recorder::create(path, "lode record");
+  ASSERT_TRUE(recorder) << recorder.error();
+  Recorder& rec = **recorder;
+
+  std::string config;  // larger than HDF5's 64 KiB compact attribute limit
+  while (config.size() < 200'000) config += "pipeline: {blocks: [glsdc, plant, lqr]}  # θ in rad\n";
+  rec.set_attribute("pipeline", "kawato_planar");
+  rec.set_attribute("config", config);
+  rec.set_attribute("host", "first value, replaced below");
+  rec.set_attribute("host", "rt-host-1");
+  rec.set_attribute("base_rate_hz", 1000.0);
+
+  std::vector<ExpectedSeries> expected(3);
+  expected[0].info = {
+      "glsdc.pose", "lode/kawato_planar/glsdc/pose", "signal", {"x", "y", "θ"}, {"m", "m", "rad"}, 1000.0, 1000.0, 1};
+  // Element names that collide with a time column or are not valid link names get a prefix.
+  expected[1].info = {"plant.gap", "", "raw", {"time_s"}, {"V"}, 100.0, 1000.0, 10};
+  expected[2].info = {"lqr.state",
+                      "lode/kawato_planar/lqr/state",
+                      "state",
+                      {"a/b", "", ".", "q3", "q4", "q5"},
+                      {"m", "m/s", "rad", "rad/s", "A", "N"},
+                      250.0,
+                      1000.0,
+                      4};
+  std::vector<int> handles(3, -1);
+  for (int s = 0; s < 2; ++s) {
+    auto handle = rec.add_series(expected[static_cast<std::size_t>(s)].info);
+    ASSERT_TRUE(handle) << handle.error();
+    handles[static_cast<std::size_t>(s)] = *handle;
+  }
+
+  AwkwardDoubles doubles;
+  std::vector<Recording::Ev> events;
+  constexpr std::uint64_t kCycles = 80'000;
+  constexpr std::uint64_t kThirdSeriesFrom = 20'000;  // added after the others have samples
+  std::size_t total = 0;
+  for (std::uint64_t cycle = 0; cycle < kCycles; ++cycle) {
+    if (cycle == kThirdSeriesFrom) {
+      auto handle = rec.add_series(expected[2].info);
+      ASSERT_TRUE(handle) << handle.error();
+      handles[2] = *handle;
+    }
+    for (std::size_t s = 0; s < 3; ++s) {
+      ExpectedSeries& series = expected[s];
+      if (handles[s] < 0 || cycle % series.info.decimation != 0) continue;
+      const auto stamp = static_cast<std::int64_t>(cycle) * 1'000'000;
+      const auto captured = 5'000'000'000'000LL + stamp + static_cast<std::int64_t>(cycle % 7) * 1000;
+      const std::size_t first = series.values.size();
+      for (std::size_t v = 0; v < series.info.names.size(); ++v) series.values.push_back(doubles.next());
+      series.cycle.push_back(cycle);
+      series.stamp_ns.push_back(stamp);
+      series.captured_ns.push_back(captured);
+      rec.append(handles[s], cycle, stamp, captured, series.values.data() + first);
+      ++total;
+    }
+    if (cycle % 97 == 0) {
+      events.push_back({cycle, static_cast<std::int64_t>(cycle) * 1'000'000, cycle % 2 ? "fault" : "warning",
+                        "cycle " + std::to_string(cycle) + ": gap sensor out of range — θ ≥ 0.1 rad"});
+      rec.add_event(events.back().cycle, events.back().stamp_ns, events.back().kind, events.back().text);
+    }
+    if (cycle % 12'345 == 12'344) {  // not chunk-aligned
+      ASSERT_TRUE(rec.flush()) << "flush at cycle " << cycle;
+    }
+  }
+  EXPECT_GE(total, 100'000U);
+  for (std::size_t s = 0; s < 3; ++s) {
+    EXPECT_EQ(rec.samples(handles[s]), expected[s].cycle.size());
+    EXPECT_EQ(rec.gaps(handles[s]), 0U);
+  }
+  const Status closed = rec.close();
+  ASSERT_TRUE(closed) << closed.message();
+
+  auto recording = read_recording(path);
+  ASSERT_TRUE(recording) << recording.error();
+  EXPECT_TRUE(recording->warnings.empty());
+  EXPECT_EQ(recording->text_attributes["format"], "lodestone-recording");
+  EXPECT_EQ(recording->number_attributes["format_version"], 1.0);
+  EXPECT_EQ(recording->text_attributes["source"], "lode record");
+  EXPECT_EQ(recording->text_attributes["created_utc"].size(), std::string("2026-11-22T02:52:12Z").size());
+  EXPECT_EQ(recording->text_attributes["pipeline"], "kawato_planar");
+  EXPECT_EQ(recording->text_attributes["host"], "rt-host-1");
+  EXPECT_EQ(recording->text_attributes["config"], config);
+  EXPECT_EQ(recording->number_attributes["base_rate_hz"], 1000.0);
+
+  ASSERT_EQ(recording->series.size(), 3U);
+  for (std::size_t s = 0; s < 3; ++s) {
+    const SeriesData& actual = recording->series[s];
+    expect_same_info(expected[s].info, actual.info);
+    EXPECT_EQ(actual.rows(), expected[s].cycle.size());
+    EXPECT_EQ(actual.values.size(), expected[s].values.size());
+    expect_same_rows(expected[s], actual, expected[s].cycle.size());
+    EXPECT_EQ(actual.gaps, 0U);
+  }
+  ASSERT_EQ(recording->events.size(), events.size());
+  for (std::size_t i = 0; i < events.size(); ++i) {
+    EXPECT_EQ(recording->events[i].cycle, events[i].cycle);
+    EXPECT_EQ(recording->events[i].stamp_ns, events[i].stamp_ns);
+    EXPECT_EQ(recording->events[i].kind, events[i].kind);
+    EXPECT_EQ(recording->events[i].text, events[i].text);
+  }
+  EXPECT_EQ(dataset_name_for("time_s", 0), "value_time_s");
+  EXPECT_EQ(dataset_name_for("a/b", 0), "value_a_b");
+  EXPECT_EQ(dataset_name_for("", 1), "value_1");
+  EXPECT_EQ(dataset_name_for(".", 2), "value_.");
+  EXPECT_EQ(dataset_name_for("θ", 2), "θ");
+  fs::remove_all(fs::path(path).parent_path());
+}
+
+TEST(Hdf5RecorderTest, SkippedCyclesAreCountedAsGaps) {
+  const std::string path = scratch_path("gaps.h5");
+  auto recorder = Recorder::create(path, "lode run");
+  ASSERT_TRUE(recorder) << recorder.error();
+  auto series = (*recorder)->add_series({"ctrl.u", "", "signal", {"u"}, {"V"}, 500.0, 1000.0, 2});
+  ASSERT_TRUE(series) << series.error();
+  const double value = 1.0;
+  // decimation 2: 6 missing (1 gap), 12..18 missing (4 gaps), 21 after 20 is early but not a
+  // gap, 23 after 21 is on time, 23 again is out of order.
+  for (std::uint64_t cycle : {0, 2, 4, 8, 10, 20, 21, 23, 23, 27}) {
+    (*recorder)->append(*series, cycle, static_cast<std::int64_t>(cycle) * 1'000'000, 0, &value);
+  }
+  EXPECT_EQ((*recorder)->samples(*series), 10U);
+  EXPECT_EQ((*recorder)->gaps(*series), 1U + 4U + 1U);  // + 25 missing before 27
+  EXPECT_EQ((*recorder)->out_of_order(*series), 1U);
+  ASSERT_TRUE((*recorder)->close());
+
+  auto recording = read_recording(path);
+  ASSERT_TRUE(recording) << recording.error();
+  ASSERT_EQ(recording->series.size(), 1U);
+  EXPECT_EQ(recording->series[0].gaps, 6U);
+  EXPECT_EQ(recording->series[0].out_of_order, 1U);
+  EXPECT_EQ(recording->series[0].rows(), 10U);
+  fs::remove_all(fs::path(path).parent_path());
+}
+
+TEST(Hdf5RecorderTest, DestructorWritesEverythingAndCloses) {
+  const std::string path = scratch_path("destructor.h5");
+  {
+    auto recorder = Recorder::create(path, "lode record");
+    ASSERT_TRUE(recorder) << recorder.error();
+    auto series = (*recorder)->add_series({"s", "", "signal", {"v"}, {"m"}, 1000.0, 1000.0, 1});
+    ASSERT_TRUE(series) << series.error();
+    for (std::uint64_t cycle = 0; cycle < 1500; ++cycle) {  // 1 whole chunk of 1000 rows + 500 buffered
+      const double value = static_cast<double>(cycle);
+      (*recorder)->append(*series, cycle, 0, 0, &value);
+    }
+    (*recorder)->add_event(3, 0, "stop", "end");
+  }
+  auto recording = read_recording(path);
+  ASSERT_TRUE(recording) << recording.error();
+  ASSERT_EQ(recording->series.size(), 1U);
+  EXPECT_EQ(recording->series[0].rows(), 1500U);
+  EXPECT_EQ(recording->series[0].values.back(), 1499.0);
+  ASSERT_EQ(recording->events.size(), 1U);
+  EXPECT_EQ(recording->events[0].kind, "stop");
+  fs::remove_all(fs::path(path).parent_path());
+}
+
+// ---- Crash safety and the files the Python check reads ------------------------------------
+
+// The content both the crash test and read_recording.py check: series "glsdc.pose" (x, y, θ
+// in m, m, rad) at 1 kHz, x = cycle * 1e-3, y = -cycle, θ = NaN on every 1000th cycle else
+// sin(cycle * 1e-3); series "plant.gap" (gap in m, decimation 10).
+constexpr std::uint64_t kFlushedCycles = 10'000;
+constexpr std::uint64_t kCyclesAfterFlush = 200'000;  // lost in the crash, or not: never required
+
+void write_known_rows(Recorder& rec, int pose, int gap, std::uint64_t from, std::uint64_t to) {
+  for (std::uint64_t cycle = from; cycle < to; ++cycle) {
+    const auto stamp = static_cast<std::int64_t>(cycle) * 1'000'000;
+    const double c = static_cast<double>(cycle);
+    const double pose_values[3] = {c * 1e-3, -c,
+                                   cycle % 1000 == 0 ? std::numeric_limits<double>::quiet_NaN() : std::sin(c * 1e-3)};
+    rec.append(pose, cycle, stamp, stamp + 42, pose_values);
+    if (cycle % 10 == 0) {
+      const double gap_value = 1e-3 + c * 1e-9;
+      rec.append(gap, cycle, stamp, stamp + 43, &gap_value);
+    }
+  }
+}
+
+/// Writes the known content; `crash` = _exit() after the flush without closing.
+[[noreturn]] void write_known_file_and_exit(const std::string& path, bool crash) {
+  auto recorder = Recorder::create(path, "lode run");
+  if (!recorder) _exit(10);
+  Recorder& rec = **recorder;
+  rec.set_attribute("pipeline", "kawato_planar");
+  rec.set_attribute("base_rate_hz", 1000.0);
+  auto pose = rec.add_series(
+      {"glsdc.pose", "lode/kawato_planar/glsdc/pose", "signal", {"x", "y", "θ"}, {"m", "m", "rad"}, 1000.0, 1000.0, 1});
+  auto gap = rec.add_series({"plant.gap", "", "raw", {"gap"}, {"m"}, 100.0, 1000.0, 10});
+  if (!pose || !gap) _exit(11);
+  rec.add_event(0, 0, "start", "run started");
+  write_known_rows(rec, *pose, *gap, 0, kFlushedCycles);
+  rec.add_event(kFlushedCycles - 1, static_cast<std::int64_t>(kFlushedCycles - 1) * 1'000'000, "fault", "ADC timeout");
+  if (!rec.flush()) _exit(12);
+  if (crash) {
+    write_known_rows(rec, *pose, *gap, kFlushedCycles, kFlushedCycles + kCyclesAfterFlush);
+    _exit(0);  // no close(), no destructor, no atexit: what a crash leaves behind
+  }
+  if (!rec.close()) _exit(13);
+  _exit(0);
+}
+
+/// Runs the writer in a child process so a crash really is a process dying.
+void write_known_file_in_child(const std::string& path, bool crash) {
+  std::fflush(nullptr);
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) write_known_file_and_exit(path, crash);
+  int status = 0;
+  ASSERT_EQ(waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFEXITED(status));
+  ASSERT_EQ(WEXITSTATUS(status), 0) << "the writer failed (exit code 1x = step x of write_known_file_and_exit)";
+}
+
+void expect_known_content(const std::string& path) {
+  auto recording = read_recording(path);
+  ASSERT_TRUE(recording) << recording.error();
+  ASSERT_EQ(recording->series.size(), 2U);
+  const SeriesData& pose = recording->series[0];
+  EXPECT_EQ(pose.info.names, (std::vector<std::string>{"x", "y", "θ"}));
+  ASSERT_GE(pose.rows(), kFlushedCycles) << "a flushed sample was lost";
+  std::size_t mismatches = 0;
+  for (std::uint64_t cycle = 0; cycle < kFlushedCycles; ++cycle) {
+    const double c = static_cast<double>(cycle);
+    mismatches += pose.cycle[cycle] != cycle;
+    mismatches += pose.captured_ns[cycle] != static_cast<std::int64_t>(cycle) * 1'000'000 + 42;
+    mismatches += pose.values[cycle * 3] != c * 1e-3;
+    mismatches += pose.values[cycle * 3 + 1] != -c;
+    mismatches +=
+        cycle % 1000 == 0 ? !std::isnan(pose.values[cycle * 3 + 2]) : pose.values[cycle * 3 + 2] != std::sin(c * 1e-3);
+  }
+  EXPECT_EQ(mismatches, 0U);
+  EXPECT_GE(recording->series[1].rows(), kFlushedCycles / 10);
+  ASSERT_GE(recording->events.size(), 2U);
+  EXPECT_EQ(recording->events[1].text, "ADC timeout");
+}
+
+TEST(Hdf5RecorderTest, FlushedSamplesSurviveACrash) {
+  const std::string path = scratch_path("crashed.h5");
+  write_known_file_in_child(path, /*crash=*/true);
+  expect_known_content(path);
+  fs::remove_all(fs::path(path).parent_path());
+}
+
+// Also run by ctest as hdf5_recorder_write_fixture, with LODE_RECORD_FIXTURE_OUT set to the
+// build folder, for hdf5_recorder_python (read_recording.py) and hdf5_recorder_h5dump. Run
+// as a plain test it writes to a private scratch folder, so that the two runs never write
+// the same file while Python reads it (ctest -j).
+TEST(Hdf5RecorderTest, WritesFilesForPython) {
+  const char* fixture_dir = std::getenv("LODE_RECORD_FIXTURE_OUT");
+  const std::string closed_path =
+      fixture_dir != nullptr ? std::string(fixture_dir) + "/python_check.h5" : scratch_path("python_check.h5");
+  const std::string crashed_path = fixture_dir != nullptr ? std::string(fixture_dir) + "/python_check_crashed.h5"
+                                                          : scratch_path("python_check_crashed.h5");
+  write_known_file_in_child(closed_path, /*crash=*/false);
+  write_known_file_in_child(crashed_path, /*crash=*/true);
+  expect_known_content(closed_path);
+  expect_known_content(crashed_path);
+  auto closed = read_recording(closed_path);
+  ASSERT_TRUE(closed);
+  EXPECT_EQ(closed->series[0].rows(), kFlushedCycles);  // closed: exactly what was appended
+  if (fixture_dir == nullptr) fs::remove_all(fs::path(closed_path).parent_path());
+}
+
+// ---- Errors --------------------------------------------------------------------------------
+
+TEST(Hdf5RecorderTest, ErrorsNameThePathAndTheField) {
+  auto missing_dir = Recorder::create("/nonexistent-dir/x.h5", "lode record");
+  ASSERT_FALSE(missing_dir);
+  EXPECT_NE(missing_dir.error().find("/nonexistent-dir/x.h5"), std::string::npos) << missing_dir.error();
+  EXPECT_NE(missing_dir.error().find("No such file or directory"), std::string::npos) << missing_dir.error();
+
+  const std::string path = scratch_path("errors.h5");
+  auto recorder = Recorder::create(path, "lode record");
+  ASSERT_TRUE(recorder) << recorder.error();
+  Recorder& rec = **recorder;
+  const auto error_of = [&](const SeriesInfo& info) {
+    auto handle = rec.add_series(info);
+    return handle ? std::string("accepted") : handle.error();
+  };
+  EXPECT_NE(error_of({"a/b", "", "signal", {"x"}, {"m"}}).find("without '/'"), std::string::npos);
+  EXPECT_NE(error_of({"", "", "signal", {"x"}, {"m"}}).find("non-empty"), std::string::npos);
+  EXPECT_NE(error_of({"s", "", "video", {"x"}, {"m"}}).find("kind 'video'"), std::string::npos);
+  EXPECT_NE(error_of({"s", "", "signal", {"x", "y"}, {"m"}}).find("units has 1"), std::string::npos);
+  EXPECT_NE(error_of({"s", "", "signal", {}, {}}).find("names is empty"), std::string::npos);
+  EXPECT_NE(error_of({"s", "", "signal", {"x", "x"}, {"m", "m"}}).find("'x' appears twice"), std::string::npos);
+  EXPECT_NE(error_of({"s", "", "signal", {"time_s", "value_time_s"}, {"s", "s"}}).find("another element"),
+            std::string::npos);
+  EXPECT_NE(error_of({"s", "", "signal", {"x"}, {"m"}, 1000, 1000, 0}).find("decimation"), std::string::npos);
+  EXPECT_NE(error_of({"s", "", "signal", {"x"}, {"m"}, -1}).find("rate_hz"), std::string::npos);
+  EXPECT_EQ(error_of({"s", "", "signal", {"x"}, {"m"}}), "accepted");
+  EXPECT_NE(error_of({"s", "", "signal", {"x"}, {"m"}}).find("already exists"), std::string::npos);
+
+  const double value = 0;
+  rec.append(7, 0, 0, 0, &value);  // unknown series: reported by the next flush
+  const Status flushed = rec.flush();
+  EXPECT_FALSE(flushed);
+  EXPECT_NE(flushed.message().find("unknown series 7"), std::string::npos) << flushed.message();
+  EXPECT_TRUE(rec.flush()) << "an error is reported once";
+  EXPECT_TRUE(rec.close());
+  EXPECT_FALSE(rec.flush());
+
+  auto not_hdf5 = read_recording("/proc/self/status");
+  ASSERT_FALSE(not_hdf5);
+  EXPECT_NE(not_hdf5.error().find("/proc/self/status"), std::string::npos) << not_hdf5.error();
+  fs::remove_all(fs::path(path).parent_path());
+}
+
+// ---- Speed (printed, asserted only loosely: two shared, noisy cores) ------------------------
+
+TEST(Hdf5RecorderTest, WriteSpeedOfAThreeValueSeries) {
+  const std::string path = scratch_path("speed.h5");
+  constexpr std::uint64_t kSamples = 2'000'000;
+  const auto start = std::chrono::steady_clock::now();
+  {
+    auto recorder = Recorder::create(path, "lode record");
+    ASSERT_TRUE(recorder) << recorder.error();
+    auto series = (*recorder)->add_series(
+        {"glsdc.pose", "", "signal", {"x", "y", "theta"}, {"m", "m", "rad"}, 10'000.0, 10'000.0, 1});
+    ASSERT_TRUE(series) << series.error();
+    for (std::uint64_t cycle = 0; cycle < kSamples; ++cycle) {
+      const double c = static_cast<double>(cycle);
+      const double values[3] = {c, -c, c * 0.5};
+      const auto stamp = static_cast<std::int64_t>(cycle) * 100'000;
+      (*recorder)->append(*series, cycle, stamp, stamp + 7, values);
+      if (cycle % 10'000 == 9'999) {  // once a second of data
+        ASSERT_TRUE((*recorder)->flush());
+      }
+    }
+    ASSERT_TRUE((*recorder)->close());
+  }
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double rate = static_cast<double>(kSamples) / seconds;
+  std::printf("[ speed    ] %llu samples of 3 values in %.3f s: %.3g samples/s, file %.1f MB (%.1f bytes/sample)\n",
+              static_cast<unsigned long long>(kSamples), seconds, rate, static_cast<double>(fs::file_size(path)) / 1e6,
+              static_cast<double>(fs::file_size(path)) / static_cast<double>(kSamples));
+  EXPECT_GT(rate, 20'000.0) << "far below a 10 kHz pipeline with margin";
+  fs::remove_all(fs::path(path).parent_path());
+}
+
+}  // namespace
+}  // namespace lode::record
