@@ -1,0 +1,38 @@
+// Creating Fast DDS 2.9 participants with lodestone's transport and security settings.
+// Only this library includes Fast DDS headers; the core and the plugins never do.
+#pragma once
+
+#include <string>
+
+#include "lode/status.hpp"
+#include "lode/telemetry.hpp"
+
+namespace eprosima::fastdds::dds {
+class DomainParticipant;
+class DomainParticipantQos;
+}  // namespace eprosima::fastdds::dds
+
+namespace lode::dds {
+
+struct ParticipantOptions {
+  int domain = 0;
+  std::string name;  ///< participant name (what `allow_participants` matches)
+  TransportSpec transport;
+  SecuritySpec security;
+};
+
+/// Fill `qos` with the transports (and security properties) of `options`. Errors (bad
+/// address, unreadable certificate) come back as values naming the field.
+Status configure_participant_qos(const ParticipantOptions& options,
+                                 eprosima::fastdds::dds::DomainParticipantQos& qos);
+
+/// Create a participant (the caller deletes it with delete_participant()).
+Expected<eprosima::fastdds::dds::DomainParticipant*> create_participant(const ParticipantOptions& options);
+void delete_participant(eprosima::fastdds::dds::DomainParticipant* participant);
+
+/// Read defaults for command-line clients: LODE_DDS_DOMAIN, LODE_DDS_TRANSPORT
+/// (loopback|shm|udp_loopback|network), LODE_DDS_PEERS (comma separated),
+/// LODE_DDS_INTERFACES (comma separated).
+ParticipantOptions options_from_environment(const std::string& name);
+
+}  // namespace lode::dds

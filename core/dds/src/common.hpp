@@ -1,0 +1,107 @@
+// What the bridge and the client agree on besides the IDL: topic names, type registration
+// and the QoS of each topic (a reader only matches a writer whose QoS it accepts).
+// Private to lodestone_dds.
+#pragma once
+
+#include <algorithm>
+#include <cstdint>
+#include <string>
+
+#include <fastdds/dds/domain/DomainParticipant.hpp>
+#include <fastdds/dds/publisher/qos/DataWriterQos.hpp>
+#include <fastdds/dds/subscriber/qos/DataReaderQos.hpp>
+#include <fastdds/dds/topic/TypeSupport.hpp>
+
+#include "lode/status.hpp"
+#include "lode_msgsPubSubTypes.h"
+
+namespace lode::dds::detail {
+
+namespace fdds = eprosima::fastdds::dds;
+
+inline constexpr const char* kSignalsTopic = "lode/signals";
+
+/// Register every lodestone type with `participant` (idempotent).
+inline Status register_types(fdds::DomainParticipant* participant) {
+  const auto one = [&](fdds::TopicDataType* type) -> bool {
+    fdds::TypeSupport support(type);
+    if (participant->find_type(support.get_type_name()).get() != nullptr) return true;
+    return support.register_type(participant) == ReturnCode_t::RETCODE_OK;
+  };
+  if (!one(new lode::msg::SignalInfoPubSubType()) || !one(new lode::msg::SignalSamplePubSubType()) ||
+      !one(new lode::msg::StageStatePubSubType()) || !one(new lode::msg::TimingStatsPubSubType()) ||
+      !one(new lode::msg::EventPubSubType()) || !one(new lode::msg::CommandPubSubType()) ||
+      !one(new lode::msg::ReplyPubSubType())) {
+    return Status::error("could not register lodestone's DDS types with the participant");
+  }
+  return Status::ok();
+}
+
+inline const char* type_name_signal_info() { return "lode::msg::SignalInfo"; }
+inline const char* type_name_signal_sample() { return "lode::msg::SignalSample"; }
+inline const char* type_name_stage_state() { return "lode::msg::StageState"; }
+inline const char* type_name_timing() { return "lode::msg::TimingStats"; }
+inline const char* type_name_event() { return "lode::msg::Event"; }
+inline const char* type_name_command() { return "lode::msg::Command"; }
+inline const char* type_name_reply() { return "lode::msg::Reply"; }
+
+enum class Durability { volatile_, transient_local };
+
+/// KEEP_LAST `depth` per instance with resource limits that admit it (Fast DDS's defaults
+/// cap an instance at 400 samples and a topic at 10 instances).
+template <typename Qos>
+void keep_last(Qos& qos, std::int32_t depth, std::int32_t instances = 1) {
+  depth = std::max(depth, 1);
+  qos.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
+  qos.history().depth = depth;
+  qos.resource_limits().max_instances = instances;
+  qos.resource_limits().max_samples_per_instance = depth;
+  qos.resource_limits().max_samples = depth * instances;
+  qos.resource_limits().allocated_samples = std::min(depth * instances, 64);
+}
+
+inline fdds::DataWriterQos writer_qos(Durability durability, std::int32_t depth,
+                                      std::int32_t instances = 1) {
+  fdds::DataWriterQos qos = fdds::DATAWRITER_QOS_DEFAULT;
+  qos.reliability().kind = fdds::RELIABLE_RELIABILITY_QOS;
+  // A stalled or vanished reader must never hold the publisher thread: a full history
+  // drops its oldest sample (KEEP_LAST), and a write that still cannot proceed fails
+  // after 1 ms and is counted.
+  qos.reliability().max_blocking_time = eprosima::fastrtps::Duration_t(0, 1000000);
+  qos.durability().kind = durability == Durability::transient_local
+                              ? fdds::TRANSIENT_LOCAL_DURABILITY_QOS
+                              : fdds::VOLATILE_DURABILITY_QOS;
+  qos.publish_mode().kind = fdds::SYNCHRONOUS_PUBLISH_MODE;
+  // Sequences are unbounded in the IDL: payloads are sized per sample.
+  qos.endpoint().history_memory_policy =
+      eprosima::fastrtps::rtps::PREALLOCATED_WITH_REALLOC_MEMORY_MODE;
+  keep_last(qos, depth, instances);
+  return qos;
+}
+
+inline fdds::DataReaderQos reader_qos(Durability durability, std::int32_t depth,
+                                      std::int32_t instances = 1) {
+  fdds::DataReaderQos qos = fdds::DATAREADER_QOS_DEFAULT;
+  qos.reliability().kind = fdds::RELIABLE_RELIABILITY_QOS;
+  qos.durability().kind = durability == Durability::transient_local
+                              ? fdds::TRANSIENT_LOCAL_DURABILITY_QOS
+                              : fdds::VOLATILE_DURABILITY_QOS;
+  qos.endpoint().history_memory_policy =
+      eprosima::fastrtps::rtps::PREALLOCATED_WITH_REALLOC_MEMORY_MODE;
+  keep_last(qos, depth, instances);
+  return qos;
+}
+
+/// Depth that holds one second of samples at `rate_hz` (at least `minimum`).
+inline std::int32_t one_second(double rate_hz, std::int32_t minimum) {
+  const double n = rate_hz > 0 ? rate_hz : 0.0;
+  return std::max(minimum, static_cast<std::int32_t>(std::min(n, 1e6)));
+}
+
+// Per-topic QoS both sides use.
+inline constexpr std::int32_t kSignalInfoInstances = 4096;  ///< topics across all pipelines
+inline constexpr std::int32_t kEventsDepth = 100;
+inline constexpr std::int32_t kTimingDepth = 16;
+inline constexpr std::int32_t kCommandDepth = 32;
+
+}  // namespace lode::dds::detail

@@ -1,0 +1,227 @@
+// Participants with lodestone's transports. The default ("loopback") never sends a packet
+// off this host: shared memory for data, UDPv4 on 127.0.0.1 with unicast discovery to
+// 127.0.0.1 and no multicast. "network" is the only kind that touches a NIC.
+#include "lode/dds/participant.hpp"
+
+#include <arpa/inet.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <fastdds/dds/domain/DomainParticipant.hpp>
+#include <fastdds/dds/domain/DomainParticipantFactory.hpp>
+#include <fastdds/dds/domain/qos/DomainParticipantQos.hpp>
+#include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
+#include <fastdds/rtps/transport/shared_mem/SharedMemTransportDescriptor.h>
+#include <fastrtps/utils/IPLocator.h>
+
+#include "security.hpp"
+
+namespace lode::dds {
+
+namespace fdds = eprosima::fastdds::dds;
+namespace rtps = eprosima::fastrtps::rtps;
+
+namespace {
+
+// Unicast discovery sends to the well-known ports of participant ids 0..N-1 on each
+// initial peer. Fast DDS's default (4) is too few when a pipeline, a recorder and several
+// `lode echo` run on one host in one domain. On 127.0.0.1 it is generous because Fast DDS
+// 2.9 numbers participants per process and never reuses a number: two participants of one
+// long-lived process (a test) with ids beyond the range cannot find each other. A few
+// dozen datagrams on lo every announcement period cost nothing.
+constexpr std::uint32_t kLoopbackPeersRange = 64;
+constexpr std::uint32_t kNetworkPeersRange = 16;
+
+bool parse_ipv4(const std::string& text, std::uint8_t out[4]) {
+  in_addr address{};
+  if (inet_pton(AF_INET, text.c_str(), &address) != 1) return false;
+  const auto* bytes = reinterpret_cast<const std::uint8_t*>(&address.s_addr);
+  for (int i = 0; i < 4; ++i) out[i] = bytes[i];
+  return true;
+}
+
+rtps::Locator_t udp_locator(const std::uint8_t ip[4], std::uint32_t port) {
+  rtps::Locator_t locator;
+  locator.kind = LOCATOR_KIND_UDPv4;
+  rtps::IPLocator::setIPv4(locator, ip[0], ip[1], ip[2], ip[3]);
+  locator.port = port;  // 0: the well-known ports of the domain
+  return locator;
+}
+
+/// "10.0.0.2" or "10.0.0.2:7412".
+Status parse_peer(const std::string& text, const std::string& field, rtps::Locator_t& out) {
+  std::string host = text;
+  std::uint32_t port = 0;
+  if (const auto colon = text.find(':'); colon != std::string::npos) {
+    host = text.substr(0, colon);
+    const std::string port_text = text.substr(colon + 1);
+    char* end = nullptr;
+    const long value = std::strtol(port_text.c_str(), &end, 10);
+    if (port_text.empty() || *end != '\0' || value < 1 || value > 65535) {
+      return Status::error(field + ": '" + text + "' has an invalid port (expected 1..65535)");
+    }
+    port = static_cast<std::uint32_t>(value);
+  }
+  std::uint8_t ip[4];
+  if (!parse_ipv4(host, ip)) {
+    return Status::error(field + ": '" + text +
+                         "' is not an IPv4 address (expected e.g. 10.0.0.2 or 10.0.0.2:7412)");
+  }
+  out = udp_locator(ip, port);
+  return Status::ok();
+}
+
+std::vector<std::string> split_list(const char* text) {
+  std::vector<std::string> items;
+  if (text == nullptr) return items;
+  std::stringstream stream(text);
+  std::string item;
+  while (std::getline(stream, item, ',')) {
+    const auto first = item.find_first_not_of(" \t");
+    const auto last = item.find_last_not_of(" \t");
+    if (first != std::string::npos) items.push_back(item.substr(first, last - first + 1));
+  }
+  return items;
+}
+
+std::string default_client_name() {
+  char host[256] = {};
+  if (gethostname(host, sizeof host - 1) != 0) host[0] = '\0';
+  return "lode-" + std::to_string(getpid()) + "@" + (host[0] ? host : "localhost");
+}
+
+}  // namespace
+
+Status configure_participant_qos(const ParticipantOptions& options, fdds::DomainParticipantQos& qos) {
+  if (options.domain < 0 || options.domain > 232) {
+    return Status::error("telemetry.domain: " + std::to_string(options.domain) +
+                         " is out of range (DDS domain ids are 0..232)");
+  }
+  qos.name(options.name);
+  auto& transport = qos.transport();
+  auto& builtin = qos.wire_protocol().builtin;
+  transport.use_builtin_transports = false;
+  transport.user_transports.clear();
+  builtin.initialPeersList.clear();
+  builtin.metatrafficUnicastLocatorList.clear();
+  builtin.metatrafficMulticastLocatorList.clear();
+
+  const std::uint8_t localhost[4] = {127, 0, 0, 1};
+  const auto loopback_udp = [&] {
+    auto udp = std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>();
+    udp->interfaceWhiteList.emplace_back("127.0.0.1");
+    udp->maxInitialPeersRange = kLoopbackPeersRange;
+    transport.user_transports.push_back(udp);
+    // Unicast discovery only: an explicit metatraffic locator means no SPDP multicast.
+    builtin.initialPeersList.push_back(udp_locator(localhost, 0));
+    builtin.metatrafficUnicastLocatorList.push_back(udp_locator(localhost, 0));
+  };
+  const auto shared_memory = [&] {
+    transport.user_transports.push_back(
+        std::make_shared<eprosima::fastdds::rtps::SharedMemTransportDescriptor>());
+  };
+
+  const TransportSpec& spec = options.transport;
+  switch (spec.kind) {
+    case TransportSpec::Kind::loopback:
+      shared_memory();
+      loopback_udp();
+      break;
+    case TransportSpec::Kind::shm:
+      shared_memory();
+      break;
+    case TransportSpec::Kind::udp_loopback:
+      loopback_udp();
+      break;
+    case TransportSpec::Kind::network: {
+      auto udp = std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>();
+      udp->maxInitialPeersRange = kNetworkPeersRange;
+      std::vector<rtps::Locator_t> interface_locators;
+      for (std::size_t i = 0; i < spec.interfaces.size(); ++i) {
+        std::uint8_t ip[4];
+        if (!parse_ipv4(spec.interfaces[i], ip)) {
+          return Status::error("telemetry.network.interfaces[" + std::to_string(i) + "]: '" +
+                               spec.interfaces[i] +
+                               "' is not an IPv4 address (give the address of the NIC, e.g. 10.0.0.1)");
+        }
+        udp->interfaceWhiteList.push_back(spec.interfaces[i]);
+        interface_locators.push_back(udp_locator(ip, 0));
+      }
+      for (std::size_t i = 0; i < spec.initial_peers.size(); ++i) {
+        rtps::Locator_t peer;
+        if (Status s = parse_peer(spec.initial_peers[i],
+                                  "telemetry.network.initial_peers[" + std::to_string(i) + "]", peer);
+            !s) {
+          return s;
+        }
+        builtin.initialPeersList.push_back(peer);
+      }
+      if (!spec.multicast) {
+        // Explicit unicast metatraffic locators switch SPDP multicast off; address 0.0.0.0
+        // lets Fast DDS use every (allowed) interface.
+        if (interface_locators.empty()) {
+          const std::uint8_t any[4] = {0, 0, 0, 0};
+          interface_locators.push_back(udp_locator(any, 0));
+        }
+        for (const auto& locator : interface_locators) builtin.metatrafficUnicastLocatorList.push_back(locator);
+      }
+      transport.user_transports.push_back(udp);
+      shared_memory();  // peers on this host
+      break;
+    }
+  }
+
+  if (options.security.enabled()) {
+    if (Status s = apply_security(options.security, qos); !s) return s;
+  }
+  return Status::ok();
+}
+
+Expected<fdds::DomainParticipant*> create_participant(const ParticipantOptions& options) {
+  fdds::DomainParticipantQos qos = fdds::PARTICIPANT_QOS_DEFAULT;
+  if (Status s = configure_participant_qos(options, qos); !s) return s;
+  fdds::DomainParticipant* participant =
+      fdds::DomainParticipantFactory::get_instance()->create_participant(
+          static_cast<fdds::DomainId_t>(options.domain), qos, nullptr, fdds::StatusMask::none());
+  if (participant == nullptr) {
+    return Status::error(std::string("could not create a DDS participant '") + options.name +
+                         "' on domain " + std::to_string(options.domain) + " with transport " +
+                         to_string(options.transport.kind) +
+                         (options.security.enabled() ? " and DDS Security (check the certificates)" : ""));
+  }
+  return participant;
+}
+
+void delete_participant(fdds::DomainParticipant* participant) {
+  if (participant == nullptr) return;
+  participant->delete_contained_entities();
+  fdds::DomainParticipantFactory::get_instance()->delete_participant(participant);
+}
+
+ParticipantOptions options_from_environment(const std::string& name) {
+  ParticipantOptions options;
+  options.name = name.empty() ? default_client_name() : name;
+  if (const char* domain = std::getenv("LODE_DDS_DOMAIN"); domain != nullptr && *domain != '\0') {
+    char* end = nullptr;
+    const long value = std::strtol(domain, &end, 10);
+    // Out of range or not a number: kept, so configure_participant_qos names the problem.
+    options.domain = (*end == '\0') ? static_cast<int>(value) : -1;
+  }
+  if (const char* kind = std::getenv("LODE_DDS_TRANSPORT"); kind != nullptr) {
+    const std::string k = kind;
+    if (k == "shm") options.transport.kind = TransportSpec::Kind::shm;
+    else if (k == "udp_loopback") options.transport.kind = TransportSpec::Kind::udp_loopback;
+    else if (k == "network") options.transport.kind = TransportSpec::Kind::network;
+    else options.transport.kind = TransportSpec::Kind::loopback;  // "loopback" or unknown
+  }
+  options.transport.initial_peers = split_list(std::getenv("LODE_DDS_PEERS"));
+  options.transport.interfaces = split_list(std::getenv("LODE_DDS_INTERFACES"));
+  return options;
+}
+
+}  // namespace lode::dds
