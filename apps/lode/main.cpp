@@ -14,9 +14,12 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "analysis.hpp"
+#include "cli.hpp"
+#include "run_services.hpp"
 #include "lode/event_log.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
@@ -27,17 +30,20 @@
 
 namespace {
 
-constexpr int kExitOk = 0;
-constexpr int kExitFault = 1;
-constexpr int kExitConfig = 2;
+using lode::cli::Args;
+using lode::cli::kExitConfig;
+using lode::cli::kExitFault;
+using lode::cli::kExitOk;
 
-std::atomic<bool> g_stop{false};
-extern "C" void on_signal(int) { g_stop.store(true); }
 
 const char* kUsage = R"(usage: lode <command> [options]
 
   run CONFIG [--duration S] [--clock sim|real] [--summary-json FILE] [--quiet]
-                       run a pipeline; live status line, summary at the end
+             [--record FILE.h5] [--domain N] [--no-telemetry] [--wait-subscribers N [--wait S]]
+             [--speed X]   (simulated clock: at most X times real time)
+                       run a pipeline; live status line, summary at the end; publishes the
+                       YAML's `telemetry:` topics over Fast DDS; --record writes every output
+                       at full rate (HDF5)
   check CONFIG         validate a pipeline; every problem with file:line:column
   describe CONFIG      the resolved pipeline as JSON, with every derived quantity
   plugins [--json]     installed plugins with their parameters and ports
@@ -45,26 +51,31 @@ const char* kUsage = R"(usage: lode <command> [options]
                        per-block and whole-cycle step cost (simulated clock)
   rtcheck              how fit this host is for real-time runs, with advice
 
+remote (any machine on the DDS domain; --domain N --transport loopback|shm|udp_loopback|network
+        --peers A,B --interfaces A,B --name NAME, or LODE_DDS_DOMAIN/TRANSPORT/PEERS/INTERFACES):
+  topics [--json] [--wait S]
+                       the live lodestone topics with rates, element names and units
+  echo TOPIC|BLOCK.PORT|events|timing [--count N] [--duration S] [--table]
+                       live samples: one line per sample (cycle, time, values) or a table
+  record FILE.h5 [--topics A,B] [--duration S]
+                       record live topics and events to HDF5 (h5py / MATLAB h5read); stops
+                       on Ctrl-C, --duration, or when the recorded pipelines stop
+  record --remote-start FILE | --remote-stop
+                       ask the running pipeline to record every output on its own host
+  set [PIPELINE/]BLOCK.PARAM [VALUE] | set --list [BLOCK]
+                       change (or read) a runtime parameter; the reply says what happened
+  swap [PIPELINE/]BLOCK PLUGIN [--params '{k: v}'] | swap --promote SHADOW
+                       ask the running pipeline to hot-swap an estimator
+
 exit codes: 0 success, 1 runtime fault, 2 invalid configuration
 plugin search path: $LODE_PLUGIN_PATH, <exe>/../lib/lodestone/plugins, install and build folders
 )";
-
-struct Args {
-  std::string command;
-  std::vector<std::string> positional;
-  std::map<std::string, std::string> options;
-  std::vector<std::string> flags;
-  bool has_flag(const std::string& f) const {
-    return std::find(flags.begin(), flags.end(), f) != flags.end();
-  }
-};
 
 std::optional<Args> parse_args(int argc, char** argv) {
   if (argc < 2) return std::nullopt;
   Args a;
   a.command = argv[1];
-  static const std::vector<std::string> with_value = {"--duration", "--clock", "--summary-json",
-                                                      "--cycles"};
+  const auto& with_value = lode::cli::options_with_value();
   for (int i = 2; i < argc; ++i) {
     std::string s = argv[i];
     if (s.rfind("--", 0) == 0) {
@@ -408,18 +419,46 @@ int cmd_run(const Args& args) {
   rec.reference = add(mon.reference);
   for (const auto& s : mon.record) rec.extra.push_back(add(s));
   rec.tap = std::make_unique<lode::SignalTap>(tapped, 1 << 15);
-  rec.rows.reserve(cycles * rec.tap->stride() + 16);
+  // Up to ~1e6 cycles reserved up front; longer runs grow the buffer on the non-RT side.
+  rec.rows.reserve(std::min<std::uint64_t>(cycles, 1u << 20) * rec.tap->stride() + 16);
 
   lode::EventLog events;
   lode::LogDrain drain(events);
-  std::signal(SIGINT, on_signal);
-  std::signal(SIGTERM, on_signal);
+  lode::cli::install_stop_handlers();
 
   std::unique_ptr<lode::Clock> clock;
   if (clock_name == "sim") clock = std::make_unique<lode::SimulatedClock>();
   else clock = std::make_unique<lode::RealClock>();
   lode::Scheduler sched(*p, *clock, events);
   sched.add_tap(rec.tap.get());
+
+  lode::cli::RunServiceOptions service_options;
+  service_options.telemetry = !args.has_flag("--no-telemetry");
+  service_options.simulated = clock_name == "sim";
+  service_options.record_path = args.option("--record");
+  if (args.has("--domain")) {
+    const auto d = lode::cli::number_option(args, "--domain", 0, 0, 232);
+    if (!d) return kExitConfig;
+    service_options.domain = static_cast<int>(*d);
+  }
+  if (args.has("--wait-subscribers")) {
+    const auto n = lode::cli::number_option(args, "--wait-subscribers", 0, 0, 1000);
+    const auto w = lode::cli::number_option(args, "--wait", 10, 0, 3600);
+    if (!n || !w) return kExitConfig;
+    service_options.wait_subscribers = static_cast<int>(*n);
+    service_options.wait_s = *w;
+  }
+  // Everything that can fail starts before activation: nothing runs half-configured.
+  auto services = lode::cli::RunServices::start(*p, sched, events, service_options);
+  if (!services) {
+    std::fprintf(stderr, "lode: %s; nothing was started\n", services.error().c_str());
+    return kExitFault;
+  }
+  if (!(*services)->wait_for_subscribers()) {
+    std::fprintf(stderr, "lode: fewer than %d subscribers matched within %g s; nothing was started\n",
+                 service_options.wait_subscribers, service_options.wait_s);
+    return kExitFault;
+  }
 
   if (auto st = p->activate(); !st) {
     std::fprintf(stderr, "lode: %s\n", st.message().c_str());
@@ -455,7 +494,18 @@ int cmd_run(const Args& args) {
     if (tty) std::fprintf(stderr, "\r%-150s%s", line.c_str(), final_line ? "\n" : "");
     else std::fprintf(stderr, "%s\n", line.c_str());
   };
+  // --speed X (simulated clock): simulated time runs at most X times real time, so a
+  // simulation can be watched live; the outputs are those of an unpaced run.
+  const auto speed = lode::cli::number_option(args, "--speed", 0, 0, 1e9);
+  if (!speed) return kExitConfig;
+  const auto paced_start = std::chrono::steady_clock::now();
   auto on_idle = [&] {
+    (*services)->on_idle();
+    if (*speed > 0 && clock_name == "sim") {
+      const double sim_s = static_cast<double>(sched.stats().last_time_ns.load()) * 1e-9;
+      std::this_thread::sleep_until(paced_start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                      std::chrono::duration<double>(sim_s / *speed)));
+    }
     rec.tap->drain(rec.rows);
     const auto now = std::chrono::steady_clock::now();
     if (now - last_print > std::chrono::milliseconds(tty ? 200 : 1000)) {
@@ -463,7 +513,9 @@ int cmd_run(const Args& args) {
       status_line(false);
     }
   };
-  const auto result = sched.run(cycles, g_stop, on_idle);
+  (*services)->set_running(true);
+  const auto result = sched.run(cycles, lode::cli::stop_requested(), on_idle);
+  (*services)->set_running(false);
   p->deactivate();  // drives every output safe
   rec.tap->drain(rec.rows);
   status_line(true);
@@ -473,6 +525,7 @@ int cmd_run(const Args& args) {
   events.post(st.last_time_ns.load(), st.cycles.load(), "stop",
               result.faulted ? "fault: " + result.fault
                              : result.stopped_by_request ? "stopped by signal" : "completed");
+  (*services)->finish();  // publishes the stop event and the last samples
   for (const auto& w : result.warnings) std::fprintf(stderr, "lode: warning: %s\n", w.c_str());
 
   lode::Json summary = lode::Json::object();
@@ -487,6 +540,8 @@ int cmd_run(const Args& args) {
   summary["recording"]["samples"] = static_cast<std::uint64_t>(rec.rows.size() / rec.tap->stride());
   summary["recording"]["dropped"] = rec.tap->dropped();
   summary["rt_log_dropped"] = lode::rt_log_ring().dropped();
+  const lode::Json service_summary = (*services)->summary();
+  for (const auto& [k, v] : service_summary.members()) summary[k] = v;
   summary["warnings"] = lode::Json::array();
   for (const auto& w : result.warnings) summary["warnings"].push(w);
   summary["events"] = events.to_json();
@@ -513,6 +568,13 @@ int cmd_run(const Args& args) {
                 static_cast<double>(op.exec_time->percentile(0.99)) / 1e3,
                 static_cast<double>(op.exec_time->max()) / 1e3);
   std::printf("\n");
+  if (const auto* t = summary.find("telemetry"))
+    std::printf("  telemetry: domain %lld, %llu samples handed over, %llu dropped by the RT side (rings full), "
+                "%llu published\n",
+                static_cast<long long>(t->find("domain")->as_number()),
+                static_cast<unsigned long long>(t->find("samples_offered")->as_number()),
+                static_cast<unsigned long long>(t->find("ring_dropped")->as_number()),
+                static_cast<unsigned long long>(t->find("published") ? t->find("published")->as_number() : 0));
   if (rec.tap->dropped() > 0)
     std::printf("  WARNING: %llu recorded samples dropped (consumer too slow)\n",
                 static_cast<unsigned long long>(rec.tap->dropped()));
@@ -527,7 +589,14 @@ int cmd_run(const Args& args) {
     }
     f << summary.dump() << "\n";
   }
-  return result.faulted ? kExitFault : kExitOk;
+  const int rc = result.faulted ? kExitFault : kExitOk;
+  if ((*services)->dds_stuck()) {
+    // Results are written; Fast DDS's own teardown would block on the stuck thread.
+    std::fprintf(stderr, "lode: warning: telemetry publisher stuck inside Fast DDS; leaving without DDS teardown\n");
+    std::fflush(nullptr);
+    _exit(rc);
+  }
+  return rc;
 }
 
 // ---------------------------------------------------------------------------------------
@@ -587,6 +656,11 @@ int main(int argc, char** argv) {
     if (args->command == "plugins") return cmd_plugins(*args);
     if (args->command == "bench") return cmd_bench(*args);
     if (args->command == "rtcheck") return cmd_rtcheck(*args);
+    if (args->command == "topics") return lode::cli::cmd_topics(*args);
+    if (args->command == "echo") return lode::cli::cmd_echo(*args);
+    if (args->command == "record") return lode::cli::cmd_record(*args);
+    if (args->command == "set") return lode::cli::cmd_set(*args);
+    if (args->command == "swap") return lode::cli::cmd_swap(*args);
   } catch (const std::exception& ex) {
     std::fprintf(stderr, "lode: internal error: %s\n", ex.what());
     return kExitFault;

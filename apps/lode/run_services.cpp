@@ -1,0 +1,363 @@
+#include "run_services.hpp"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <mutex>
+#include <thread>
+
+#include "lode/control.hpp"
+#include "lode/dds/bridge.hpp"
+#include "lode/record/hdf5_recorder.hpp"
+#include "lode/rt_log.hpp"
+#include "lode/telemetry.hpp"
+
+namespace lode::cli {
+
+namespace {
+
+/// FNV-1a over the bit patterns of every output, every cycle. RT-safe: a few ns per value.
+class OutputDigest final : public CycleHook {
+ public:
+  explicit OutputDigest(std::vector<SignalRef> signals) : signals_(std::move(signals)) {}
+  void after_cycle(const Tick&) noexcept override {
+    for (const auto& s : signals_) {
+      const auto* bytes = reinterpret_cast<const unsigned char*>(s.data);
+      for (std::size_t i = 0; i < s.size() * sizeof(double); ++i) {
+        hash_ ^= bytes[i];
+        hash_ *= 0x100000001b3ULL;
+      }
+    }
+  }
+  [[nodiscard]] std::uint64_t value() const { return hash_; }
+
+ private:
+  std::vector<SignalRef> signals_;
+  std::uint64_t hash_ = 0xcbf29ce484222325ULL;
+};
+
+/// A SignalTap over every output that copies only while a recording is open.
+class RecordTap final : public CycleHook {
+ public:
+  explicit RecordTap(std::vector<SignalRef> signals) : tap_(std::move(signals), 1 << 15) {}
+  void after_cycle(const Tick& tick) noexcept override {
+    if (open_.load(std::memory_order_acquire)) tap_.capture(tick.cycle, tick.time_ns);
+  }
+  SignalTap& tap() { return tap_; }
+  std::atomic<bool>& open() { return open_; }
+
+ private:
+  SignalTap tap_;
+  std::atomic<bool> open_{false};
+};
+
+std::string hostname() {
+  char host[256] = "host";
+  gethostname(host, sizeof host - 1);
+  return host;
+}
+
+}  // namespace
+
+struct RunServices::Impl {
+  Pipeline* pipeline = nullptr;
+  EventLog* events = nullptr;
+  const RunStats* stats = nullptr;
+  RunServiceOptions options;
+  TelemetrySpec spec;
+  std::unique_ptr<OutputDigest> digest;
+  std::unique_ptr<RecordTap> record_tap;
+  std::unique_ptr<TelemetryTap> telemetry_tap;
+  std::unique_ptr<ControlService> control;
+  std::unique_ptr<dds::TelemetryBridge> bridge;
+
+  // The recorder is used by on_idle (main thread) and by the command thread: one mutex.
+  std::mutex record_mutex;
+  std::unique_ptr<record::Recorder> recorder;
+  std::string recording_path;
+  std::vector<int> series;  // per tapped signal
+  std::vector<double> rows;
+  std::size_t event_cursor = 0;
+  std::uint64_t recorded_cycles = 0;
+  Json finished_recordings = Json::array();
+  std::uint64_t sim_waits = 0;
+  std::uint64_t last_published = 0;
+  std::chrono::steady_clock::time_point last_progress = std::chrono::steady_clock::now();
+  bool stall_reported = false;
+
+  Status open_recording(const std::string& path) {
+    if (recorder) return Status::error("already recording to " + recording_path + " (record_stop first)");
+    auto r = record::Recorder::create(path, "lode run");
+    if (!r) return Status::error(r.error());
+    recorder = std::move(*r);
+    recorder->set_attribute("pipeline", pipeline->name());
+    recorder->set_attribute("config_file", pipeline->source_file());
+    recorder->set_attribute("config", pipeline->source_text());
+    recorder->set_attribute("host", hostname());
+    recorder->set_attribute("rate_hz", pipeline->rate_hz());
+    series.clear();
+    for (const auto& s : record_tap->tap().signals()) {
+      record::SeriesInfo info;
+      info.name = s.name();
+      info.kind = "signal";
+      for (const auto& e : *s.elements) {
+        info.names.push_back(e.name);
+        info.units.push_back(e.unit);
+      }
+      info.rate_hz = pipeline->rate_hz();
+      info.pipeline_rate_hz = pipeline->rate_hz();
+      auto id = recorder->add_series(info);
+      if (!id) {
+        recorder.reset();
+        return Status::error(id.error());
+      }
+      series.push_back(*id);
+    }
+    // Stale records from an earlier recording are dropped before the gate opens.
+    rows.clear();
+    record_tap->tap().drain(rows);
+    rows.clear();
+    recording_path = path;
+    recorded_cycles = 0;
+    event_cursor = 0;
+    record_tap->open().store(true, std::memory_order_release);
+    return {};
+  }
+
+  /// With record_mutex held.
+  void drain_recording() {
+    if (!recorder) return;
+    rows.clear();
+    record_tap->tap().drain(rows);
+    const auto& tap = record_tap->tap();
+    const std::size_t stride = tap.stride();
+    for (std::size_t k = 0; k + stride <= rows.size(); k += stride) {
+      const auto cycle = static_cast<std::uint64_t>(rows[k]);
+      const auto stamp = static_cast<std::int64_t>(std::llround(rows[k + 1] * 1e9));
+      for (std::size_t i = 0; i < series.size(); ++i)
+        recorder->append(series[i], cycle, stamp, 0, rows.data() + k + tap.column(i));
+      ++recorded_cycles;
+    }
+    for (const auto& e : events->since(event_cursor)) recorder->add_event(e.cycle, e.time_ns, e.kind, e.text);
+  }
+
+  Status close_recording() {
+    if (!recorder) return Status::error("not recording");
+    record_tap->open().store(false, std::memory_order_release);
+    drain_recording();
+    recorder->set_attribute("dropped_cycles", static_cast<double>(record_tap->tap().dropped()));
+    auto st = recorder->close();
+    Json j = Json::object();
+    j["file"] = recording_path;
+    j["cycles"] = recorded_cycles;
+    j["dropped"] = record_tap->tap().dropped();
+    finished_recordings.push(std::move(j));
+    recorder.reset();
+    return st;
+  }
+
+  ControlReply handle_record(const ControlRequest& r) {
+    ControlReply reply;
+    reply.id = r.id;
+    std::lock_guard lock(record_mutex);
+    if (r.kind == "record_start") {
+      if (r.name.empty()) {
+        reply.message = "record_start: give the file to write on the RT host (lode record --remote-start FILE)";
+        return reply;
+      }
+      if (auto st = open_recording(r.name); !st) {
+        reply.message = "record_start: " + st.message();
+        return reply;
+      }
+      reply.ok = true;
+      reply.message = "recording every output of '" + pipeline->name() + "' to " + r.name;
+      events->post(stats->last_time_ns.load(), stats->cycles.load(), "record", reply.message);
+    } else {
+      const std::string path = recording_path;
+      const auto cycles = recorded_cycles;
+      if (auto st = close_recording(); !st) {
+        reply.message = "record_stop: " + st.message();
+        return reply;
+      }
+      reply.ok = true;
+      reply.message = "closed " + path + " (" + std::to_string(cycles) + " cycles)";
+      events->post(stats->last_time_ns.load(), stats->cycles.load(), "record", reply.message);
+    }
+    return reply;
+  }
+};
+
+RunServices::RunServices() : impl_(std::make_unique<Impl>()) {}
+
+RunServices::~RunServices() {
+  if (impl_) finish();
+}
+
+Expected<std::unique_ptr<RunServices>> RunServices::start(Pipeline& pipeline, Scheduler& scheduler,
+                                                          EventLog& events, const RunServiceOptions& options) {
+  std::unique_ptr<RunServices> s(new RunServices());
+  Impl& im = *s->impl_;
+  im.pipeline = &pipeline;
+  im.events = &events;
+  im.stats = &scheduler.stats();
+  im.options = options;
+  im.spec = pipeline.telemetry();
+  if (options.domain) im.spec.domain = *options.domain;
+  const bool telemetry = im.spec.enabled && options.telemetry;
+
+  // Order on the RT thread: commands before the cycle; taps and digest after it.
+  if (telemetry && im.spec.commands.enabled) {
+    im.control = std::make_unique<ControlService>(pipeline, events);
+    scheduler.add_hook(im.control.get());
+  }
+  im.digest = std::make_unique<OutputDigest>(pipeline.signals());
+  scheduler.add_hook(im.digest.get());
+  im.record_tap = std::make_unique<RecordTap>(pipeline.signals());
+  scheduler.add_hook(im.record_tap.get());
+  if (im.control)
+    im.control->set_record_handler([&im](const ControlRequest& r) { return im.handle_record(r); });
+  if (!options.record_path.empty()) {
+    std::lock_guard lock(im.record_mutex);
+    if (auto st = im.open_recording(options.record_path); !st) return st;
+  }
+  if (telemetry) {
+    im.telemetry_tap = std::make_unique<TelemetryTap>(im.spec, pipeline.rate_hz());
+    scheduler.add_hook(im.telemetry_tap.get());
+    dds::ParticipantOptions po;
+    po.domain = im.spec.domain;
+    po.name = "lode-run/" + pipeline.name() + "@" + hostname();
+    po.transport = im.spec.transport;
+    po.security = im.spec.security;
+    auto bridge = dds::TelemetryBridge::start(pipeline, im.spec, *im.telemetry_tap, scheduler.stats(), events,
+                                              im.control.get(), po);
+    if (!bridge) return Status::error("telemetry: " + bridge.error());
+    im.bridge = std::move(*bridge);
+  }
+  return s;
+}
+
+bool RunServices::wait_for_subscribers() {
+  Impl& im = *impl_;
+  if (im.options.wait_subscribers <= 0) return true;
+  if (!im.bridge) return false;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(im.options.wait_s);
+  while (im.bridge->matched_readers() < static_cast<std::size_t>(im.options.wait_subscribers)) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return true;
+}
+
+void RunServices::set_running(bool running) {
+  if (impl_->control) impl_->control->set_running(running);
+}
+
+void RunServices::on_idle() {
+  Impl& im = *impl_;
+  {
+    std::lock_guard lock(im.record_mutex);
+    im.drain_recording();
+  }
+  if (im.telemetry_tap && im.bridge) {
+    // Watchdog: samples waiting but nothing published for 3 s means the publisher thread
+    // is stuck (inside Fast DDS); say so once. The RT side keeps running and counts drops.
+    const auto published = im.bridge->stats().published;
+    const auto now = std::chrono::steady_clock::now();
+    std::size_t waiting = 0;
+    for (const auto& c : im.telemetry_tap->channels()) waiting += c.ring->size();
+    if (published != im.last_published || waiting == 0) {
+      im.last_published = published;
+      im.last_progress = now;
+    } else if (!im.stall_reported && now - im.last_progress > std::chrono::seconds(3)) {
+      im.stall_reported = true;
+      im.events->post(im.stats->last_time_ns.load(), im.stats->cycles.load(), "warning",
+                      "telemetry: publisher made no progress for 3 s with " + std::to_string(waiting) +
+                          " samples waiting (stuck inside Fast DDS?); the loop is unaffected, samples are dropped and counted");
+    }
+  }
+  if (!im.options.simulated || !im.telemetry_tap || !im.bridge || im.stall_reported) return;
+  // Simulated clock: hold the simulation (there is no deadline) until every ring has room
+  // for the next batch of cycles; give up after 5 s of no progress (then drops are counted).
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  for (;;) {
+    bool room = true;
+    for (const auto& c : im.telemetry_tap->channels()) room = room && c.ring->size() * 2 <= c.ring->capacity();
+    if (room || std::chrono::steady_clock::now() > give_up) break;
+    ++im.sim_waits;
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
+}
+
+void RunServices::finish() {
+  Impl& im = *impl_;
+  {
+    std::lock_guard lock(im.record_mutex);
+    if (im.recorder) {
+      if (auto st = im.close_recording(); !st) std::fprintf(stderr, "lode: recording: %s\n", st.message().c_str());
+    }
+  }
+  if (im.bridge) {
+    // Publish the rest and close the participant, but never wait for ever: Fast DDS 2.9.1
+    // has lock-order bugs in its reliable writer (we have seen the publisher thread
+    // deadlock inside DataWriter::write while readers joined and left). The loop never
+    // depends on it; the run must not hang on it either.
+    auto done = std::make_shared<std::atomic<bool>>(false);
+    dds::TelemetryBridge* bridge = im.bridge.get();
+    std::thread stopper([bridge, done] {
+      bridge->flush();
+      bridge->stop();
+      done->store(true);
+    });
+    const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    while (!done->load() && std::chrono::steady_clock::now() < give_up)
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    last_bridge_stats_ = im.bridge->stats();
+    if (done->load()) {
+      stopper.join();
+      im.bridge.reset();  // finish() is idempotent: the destructor calls it again
+    } else {
+      stopper.detach();
+      (void)im.bridge.release();  // stuck inside Fast DDS: deleting it would hang too
+      dds_stuck_ = true;
+      im.events->post(im.stats->last_time_ns.load(), im.stats->cycles.load(), "warning",
+                      "telemetry: the DDS publisher did not stop within 10 s (stuck inside Fast DDS); "
+                      "exiting without a clean DDS shutdown");
+    }
+  }
+}
+
+std::string RunServices::output_digest() const {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(impl_->digest->value()));
+  return buf;
+}
+
+Json RunServices::summary() const {
+  const Impl& im = *impl_;
+  Json j = Json::object();
+  j["output_digest"] = output_digest();
+  if (im.telemetry_tap) {
+    Json t = Json::object();
+    t["domain"] = static_cast<std::int64_t>(im.spec.domain);
+    t["transport"] = to_string(im.spec.transport.kind);
+    t["samples_offered"] = im.telemetry_tap->offered();
+    t["ring_dropped"] = im.telemetry_tap->dropped();
+    t["simulation_held"] = im.sim_waits;
+    {
+      const auto b = im.bridge ? im.bridge->stats() : last_bridge_stats_;
+      t["published"] = b.published;
+      t["commands_accepted"] = b.commands_accepted;
+      t["commands_refused"] = b.commands_refused;
+      t["publisher_stalled"] = im.stall_reported;
+      t["clean_shutdown"] = !dds_stuck_;
+    }
+    j["telemetry"] = std::move(t);
+  }
+  j["recordings"] = im.finished_recordings;
+  return j;
+}
+
+}  // namespace lode::cli

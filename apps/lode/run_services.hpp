@@ -1,0 +1,62 @@
+// What `lode run` adds around the scheduler besides the status line: telemetry over
+// Fast DDS with remote commands, the local recorder (--record, and record_start/record_stop
+// commands), and an output digest that proves two runs bit-identical.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "lode/event_log.hpp"
+#include "lode/json.hpp"
+#include "lode/pipeline.hpp"
+#include "lode/scheduler.hpp"
+#include "lode/dds/bridge.hpp"
+#include "lode/status.hpp"
+
+namespace lode::cli {
+
+struct RunServiceOptions {
+  bool telemetry = true;             ///< start the DDS bridge when the YAML has `telemetry:`
+  std::optional<int> domain;         ///< --domain overrides telemetry.domain
+  std::string record_path;           ///< --record FILE: every output at full rate
+  int wait_subscribers = 0;          ///< --wait-subscribers N: start cycling once N readers matched
+  double wait_s = 10.0;
+  bool simulated = true;
+};
+
+class RunServices {
+ public:
+  /// Prepare hooks and start the bridge; on error nothing is left running.
+  static Expected<std::unique_ptr<RunServices>> start(Pipeline& pipeline, Scheduler& scheduler,
+                                                      EventLog& events, const RunServiceOptions& options);
+  ~RunServices();
+
+  /// Before the first cycle: wait for subscribers if asked. False if they did not come.
+  bool wait_for_subscribers();
+  void set_running(bool running);
+  /// Called from the scheduler's on_idle: drain the recorder; in simulated runs, hold the
+  /// simulation while the telemetry rings are more than half full (no deadline to miss, so
+  /// a simulated run is never lossy unless the publisher is stuck for seconds).
+  void on_idle();
+  /// End of run: stop recording, publish the rest, close the participant.
+  void finish();
+  /// {telemetry: {...}, recording: {...}, output_digest: "..."} for the summary.
+  [[nodiscard]] Json summary() const;
+  /// True when the DDS publisher could not be stopped (stuck inside Fast DDS): the caller
+  /// must leave with _exit() after writing its results, since destructors would hang.
+  [[nodiscard]] bool dds_stuck() const { return dds_stuck_; }
+  /// 64-bit FNV-1a over the bits of every output of every cycle, as 16 hex digits.
+  [[nodiscard]] std::string output_digest() const;
+
+  struct Impl;
+
+ private:
+  RunServices();
+  std::unique_ptr<Impl> impl_;
+  dds::BridgeStats last_bridge_stats_;
+  bool dds_stuck_ = false;
+};
+
+}  // namespace lode::cli
