@@ -437,6 +437,9 @@ void Bridge::publisher_loop() {
       std::chrono::duration<double>(1.0 / timing_rate));
   auto next_timing = clock::now() + timing_period;
   std::unique_lock wake_lock(wake_mutex_);
+  // The RT thread cannot wake us (that would be a system call): poll. The period bounds
+  // the added latency (uniform in [0, period]) against the CPU cost of waking up.
+  const auto publish_period = std::chrono::microseconds(static_cast<long long>(spec_.publish_period_s * 1e6));
   while (!stopped_) {
     wake_lock.unlock();
     {
@@ -450,7 +453,7 @@ void Bridge::publisher_loop() {
       }
     }
     wake_lock.lock();
-    wake_.wait_for(wake_lock, std::chrono::milliseconds(1), [this] { return stopped_; });
+    wake_.wait_for(wake_lock, publish_period, [this] { return stopped_; });
   }
   wake_lock.unlock();
   std::lock_guard lock(publish_mutex_);  // what the last cycles left behind

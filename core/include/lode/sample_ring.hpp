@@ -46,6 +46,7 @@ class SampleRing {
   std::size_t mask_;
   std::vector<double> storage_;
   alignas(64) std::atomic<std::uint64_t> head_{0};  ///< written by the producer only
+  std::uint64_t cached_tail_ = 0;                    ///< producer's last view of tail_
   alignas(64) std::atomic<std::uint64_t> tail_{0};  ///< written by the consumer only
   alignas(64) std::atomic<std::uint64_t> dropped_{0};
 };

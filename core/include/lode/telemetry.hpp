@@ -82,6 +82,7 @@ struct TelemetrySpec {
   std::vector<TelemetrySignal> signals;
   std::optional<StateSpec> state;
   double timing_rate_hz = 1.0;   ///< timing statistics topic
+  double publish_period_s = 0.001;  ///< how often the publisher thread drains the rings
   std::uint32_t ring_records = 0;  ///< per-signal ring capacity; 0 = one second of samples (min 1024)
   std::uint32_t history = 0;       ///< DDS writer history depth; 0 = one second of samples (min 64)
 };

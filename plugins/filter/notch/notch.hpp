@@ -65,47 +65,8 @@ using Coefficients = lode::math::BiquadCoefficients;
 /// used by configure() and by set_tunable() on the RT thread.
 Coefficients design(Form form, double f_notch_hz, double k, double zeta, double rate_hz) noexcept;
 
-/// One channel's transposed direct form II section, the same recursion as
-/// lode::math::BiquadSection, that also remembers its last two inputs and outputs so that
-/// retune() can restate s1, s2 for new coefficients:
-///   s1 = b1 x(n) - a1 y(n) + b2 x(n-1) - a2 y(n-1),   s2 = b2 x(n) - a2 y(n),
-/// which is exactly the state the new recursion would have after that input/output history.
-class Section {
- public:
-  void configure(const Coefficients& c) noexcept {
-    c_ = c;
-    reset();
-  }
-  void reset() noexcept { s1_ = s2_ = x1_ = x2_ = y1_ = y2_ = 0.0; }
-  /// y for input x; returns false (state unchanged) if the result is not finite.
-  bool step(double x, double& y) noexcept {
-    const double out = c_.b0 * x + s1_;
-    const double s1 = c_.b1 * x - c_.a1 * out + s2_;
-    const double s2 = c_.b2 * x - c_.a2 * out;
-    if (!std::isfinite(out) || !std::isfinite(s1) || !std::isfinite(s2)) return false;
-    s1_ = s1;
-    s2_ = s2;
-    x2_ = x1_;
-    x1_ = x;
-    y2_ = y1_;
-    y1_ = out;
-    y = out;
-    return true;
-  }
-  /// New coefficients from the next step(), continuing from the actual signal history.
-  void retune(const Coefficients& c) noexcept {
-    c_ = c;
-    s1_ = c.b1 * x1_ - c.a1 * y1_ + c.b2 * x2_ - c.a2 * y2_;
-    s2_ = c.b2 * x1_ - c.a2 * y1_;
-  }
-  [[nodiscard]] const Coefficients& coefficients() const noexcept { return c_; }
-
- private:
-  Coefficients c_;
-  double s1_ = 0.0, s2_ = 0.0;
-  double x1_ = 0.0, x2_ = 0.0;  ///< x(n), x(n-1) after the last step
-  double y1_ = 0.0, y2_ = 0.0;  ///< y(n), y(n-1)
-};
+/// One channel's second-order section (with retune(): lode::math::BiquadSection).
+using Section = lode::math::BiquadSection;
 
 /// Per channel: what it was designed from (for describe()).
 struct ChannelDesign {
