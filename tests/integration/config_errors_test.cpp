@@ -142,6 +142,22 @@ const std::vector<Case>& cases() {
        "mass_kg", "mass_kg: -1"},
       {"bad_realtime_priority", [] { return replace(kValid, "rate_hz: 800\n", "rate_hz: 800\nrealtime: {priority: 150}\n"); },
        "SCHED_FIFO priority must be 0 (none) or 1..99", "priority: 150"},
+      // The telemetry: section is checked like the rest, before anything starts.
+      {"telemetry_rate_not_a_divisor",
+       [] { return kValid + std::string("telemetry: {rate_hz: 300, publish: [stage.truth]}\n"); },
+       "rate 300 Hz does not divide the pipeline rate 800 Hz; nearest rates: 266.667 or 400 Hz", "rate_hz: 300"},
+      {"telemetry_unknown_signal",
+       [] { return kValid + std::string("telemetry:\n  publish: [stage.truth, ctrl.force]\n"); },
+       "no output 'ctrl.force'", "publish: [stage.truth, ctrl.force]"},
+      {"telemetry_bad_allow_host",
+       [] { return kValid + std::string("telemetry:\n  commands: {enabled: true, allow_hosts: [lab-pc]}\n"); },
+       "allow_hosts[0] 'lab-pc' is not an IPv4 address", "allow_hosts: [lab-pc]"},
+      {"telemetry_network_settings_without_network",
+       [] { return kValid + std::string("telemetry:\n  network: {interfaces: [10.0.0.5]}\n"); },
+       "only apply with `transport: network`", "network: {interfaces"},
+      {"telemetry_missing_certificate",
+       [] { return kValid + std::string("telemetry:\n  security: {ca_certificate: /nonexistent/ca.pem}\n"); },
+       "cannot read '/nonexistent/ca.pem'", "security: {ca_certificate"},
   };
   return c;
 }
