@@ -861,6 +861,7 @@ void Pipeline::Impl::parse_telemetry(const YAML::Node& t) {
       spec.state = std::move(state);
     }
   }
+  spec.reliable = p.choice("reliability", {"best_effort", "reliable"}, "best_effort") == "reliable";
   spec.publish_period_s = p.number("publish_period_ms", 1.0) * 1e-3;
   p.check(spec.publish_period_s >= 50e-6 && spec.publish_period_s <= 0.1, "publish_period_ms",
           "must be in [0.05, 100] ms (the publisher's polling period: latency vs CPU)");

@@ -52,9 +52,9 @@ stream)
   "$LODE" topics --domain "$DOMAIN" --wait 15 >"$TMP/topics.out" 2>&1; check_rc "topics (late joiner)" 0 $?
   contains "topics lists kf.pose with names and units" "$TMP/topics.out" "lode/kawato_planar/kf/pose +1000 Hz +x\[m\] y\[m\] theta_z\[rad\]"
   contains "topics lists the state topic" "$TMP/topics.out" "lode/kawato_planar/state"
-  "$LODE" echo kf.pose --domain "$DOMAIN" --count 50 --wait 10 >"$TMP/late.out" 2>&1; check_rc "late echo" 0 $?
+  "$LODE" echo kf.pose --domain "$DOMAIN" --count 50 --wait 10 --duration 20 >"$TMP/late.out" 2>&1; check_rc "late echo" 0 $?
   contains "late echo has the header with units" "$TMP/late.out" "^# cycle t\[s\] x\[m\] y\[m\] theta_z\[rad\]"
-  "$LODE" echo events --pipeline kawato_planar --domain "$DOMAIN" --count 1 --wait 10 >"$TMP/events.out" 2>&1
+  "$LODE" echo events --pipeline kawato_planar --domain "$DOMAIN" --count 1 --wait 10 --duration 20 >"$TMP/events.out" 2>&1
   contains "late joiner sees the start event" "$TMP/events.out" "\[start\]"
   wait $RUN; check_rc "run" 0 $?
   wait $ECHO; check_rc "echo" 0 $?

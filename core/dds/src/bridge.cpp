@@ -323,7 +323,9 @@ Status Bridge::open(const ParticipantOptions& options) {
   for (const auto& signal : spec_.signals) {
     Channel channel;
     channel.writer = make_writer(signal.topic, detail::type_name_signal_sample(),
-                                 detail::writer_qos(Durability::volatile_, depth_for(signal.decimation)),
+                                 detail::with_reliability(
+                                     detail::writer_qos(Durability::volatile_, depth_for(signal.decimation)),
+                                     spec_.reliable),
                                  status);
     channels_.push_back(std::move(channel));
   }
@@ -334,7 +336,9 @@ Status Bridge::open(const ParticipantOptions& options) {
     channel.twist = spec_.state->twist ? spec_.state->twist->size() : 0;
     channel.covariance = spec_.state->covariance ? spec_.state->covariance->size() : 0;
     channel.writer = make_writer(spec_.state->topic, detail::type_name_stage_state(),
-                                 detail::writer_qos(Durability::volatile_, depth_for(spec_.state->decimation)),
+                                 detail::with_reliability(
+                                     detail::writer_qos(Durability::volatile_, depth_for(spec_.state->decimation)),
+                                     spec_.reliable),
                                  status);
     channels_.push_back(std::move(channel));
   }
@@ -401,6 +405,7 @@ Status Bridge::publish_signal_info() {
     info.pipeline_rate_hz(rate);
     info.decimation(signal.decimation);
     info.kind("signal");
+    info.reliable(spec_.reliable);
     infos.push_back(std::move(info));
   }
   if (spec_.state) {
@@ -420,6 +425,7 @@ Status Bridge::publish_signal_info() {
     info.pose_size(static_cast<std::uint32_t>(state.pose.size()));
     info.twist_size(static_cast<std::uint32_t>(state.twist ? state.twist->size() : 0));
     info.covariance_size(static_cast<std::uint32_t>(state.covariance ? state.covariance->size() : 0));
+    info.reliable(spec_.reliable);
     infos.push_back(std::move(info));
   }
   for (auto& info : infos) {

@@ -110,6 +110,7 @@ SignalMeta meta_from(const lode::msg::SignalInfo& info) {
   m.pose_size = info.pose_size();
   m.twist_size = info.twist_size();
   m.covariance_size = info.covariance_size();
+  m.reliable = info.reliable();
   return m;
 }
 
@@ -301,7 +302,8 @@ class ClientImpl final : public Client {
       };
     }
     const std::int32_t depth = detail::one_second(meta.rate_hz, 64);
-    if (Status s = add_reader(*subscription, topic, detail::reader_qos(Durability::volatile_, depth),
+    if (Status s = add_reader(*subscription, topic,
+                              detail::with_reliability(detail::reader_qos(Durability::volatile_, depth), meta.reliable),
                               gate, std::move(drain));
         !s) {
       return s;

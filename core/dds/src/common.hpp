@@ -79,6 +79,13 @@ inline fdds::DataWriterQos writer_qos(Durability durability, std::int32_t depth,
   return qos;
 }
 
+/// Signal/state topics: the reliability the pipeline chose (telemetry.reliability).
+template <typename Qos>
+Qos with_reliability(Qos qos, bool reliable) {
+  qos.reliability().kind = reliable ? fdds::RELIABLE_RELIABILITY_QOS : fdds::BEST_EFFORT_RELIABILITY_QOS;
+  return qos;
+}
+
 inline fdds::DataReaderQos reader_qos(Durability durability, std::int32_t depth,
                                       std::int32_t instances = 1) {
   fdds::DataReaderQos qos = fdds::DATAREADER_QOS_DEFAULT;

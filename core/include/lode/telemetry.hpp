@@ -83,6 +83,12 @@ struct TelemetrySpec {
   std::optional<StateSpec> state;
   double timing_rate_hz = 1.0;   ///< timing statistics topic
   double publish_period_s = 0.001;  ///< how often the publisher thread drains the rings
+  /// Signal and state topics: RELIABLE (retransmits lost packets) or BEST_EFFORT (default).
+  /// Best effort because Fast DDS 2.9.1's reliable writer can deadlock its publisher thread
+  /// while readers join and leave (seen in the churn test); on shared memory and loopback
+  /// nothing is lost unless a reader falls behind, and receivers count every gap.
+  /// Metadata, events, timing and commands are always reliable.
+  bool reliable = false;
   std::uint32_t ring_records = 0;  ///< per-signal ring capacity; 0 = one second of samples (min 1024)
   std::uint32_t history = 0;       ///< DDS writer history depth; 0 = one second of samples (min 64)
 };

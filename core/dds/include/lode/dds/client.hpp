@@ -20,6 +20,7 @@ struct SignalMeta {
   double rate_hz = 0, pipeline_rate_hz = 0;
   std::uint32_t decimation = 1;
   std::uint32_t pose_size = 0, twist_size = 0, covariance_size = 0;
+  bool reliable = false;  ///< the writer's reliability (the reader must not ask for more)
 };
 
 struct Sample {
