@@ -13,6 +13,10 @@
 // step() is the real-time contract: no allocation, no locks, no system calls, no exceptions,
 // no logging except rt_log(). It returns StepStatus; on a fault it records a static reason.
 //
+// Ports are re-bound by a hot swap (a replacement takes over the storage of the block it
+// replaces, at a cycle boundary): read and write them through the port objects in every
+// step(), never keep their data() pointers across steps.
+//
 // I/O blocks (descriptor kind io) are split in two: step() is the read phase at the start of
 // the cycle (their outputs are sources of the graph) and write() the write phase at its end
 // (their inputs are sinks), so feedback through the plant never forms a cycle.
@@ -50,6 +54,14 @@ struct Tunable {
   double max = 1e300;
   bool integer = false;
   std::string description;
+};
+
+/// What an estimator's exported state holds (see Block::state_layout()).
+struct StateLayout {
+  Elements elements;        ///< name and SI unit of each state element, in export order
+  bool covariance = false;  ///< export_state() also writes the n x n covariance
+  [[nodiscard]] std::size_t size() const { return elements.size(); }
+  [[nodiscard]] bool empty() const { return elements.empty(); }
 };
 
 /// Owning handle to a model created from the pipeline's `models:` section.
@@ -118,6 +130,36 @@ class Block : public virtual Component {
     why = "not tunable";
     return false;
   }
+  //@}
+
+  /// @name Estimator state (hot swap, issue 5).
+  /// A block that estimates a state exports it so a replacement can warm-start from it at
+  /// the cycle boundary of a hot swap, and reports its innovation so the health monitor and
+  /// the shadow statistics can test it. The state exported is the prior of the coming
+  /// step(): for a Kalman filter x⁻_k and P⁻_k, for GLSDC the warm-start pose.
+  ///
+  /// state_layout() is called off the RT thread after configure(); export_state(),
+  /// import_state() and innovation() on the RT thread between steps: RT-safe, no
+  /// allocation, sizes fixed by the layout.
+  //@{
+  /// Named elements with units (e.g. x, x_dot, x_ddot, y, ... in m, m/s, m/s^2); empty
+  /// when the block has no exportable state.
+  [[nodiscard]] virtual StateLayout state_layout() const { return {}; }
+  /// Write n = layout size values and, when layout.covariance, n*n row-major covariance.
+  virtual void export_state(double* /*values*/, double* /*covariance*/) const noexcept {}
+  /// Take the state from `values` where present[i] != 0; keep the block's own initial
+  /// value (after activate()) for the others. `covariance` (n*n, may be nullptr) gives
+  /// P(i,j) for pairs where both are present; rows and columns of absent elements keep the
+  /// block's own initial covariance with zero cross terms. Must leave a usable filter
+  /// (symmetric positive definite P) whatever it is given; a block may symmetrise.
+  virtual void import_state(const double* /*values*/, const double* /*covariance*/,
+                            const std::uint8_t* /*present*/) noexcept {}
+  /// Channels of the measurement update (0 = none): size of innovation()'s arrays.
+  [[nodiscard]] virtual std::size_t innovation_size() const { return 0; }
+  /// The last step's innovation nu = y - y_hat and its predicted variance S(i,i) (the
+  /// diagonal of H P⁻ H' + R). False when the last step made no measurement update
+  /// (coasting, first cycle). NIS (diagonal) = sum nu_i^2 / S(i,i).
+  virtual bool innovation(double* /*residual*/, double* /*variance*/) const noexcept { return false; }
   //@}
 
   /// Reason of the last StepStatus::fault (a string literal).

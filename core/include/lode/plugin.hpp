@@ -17,7 +17,7 @@
 
 namespace lode {
 
-inline constexpr std::uint32_t kPluginAbiVersion = 2;  // 2: ProcessModel, virtual Component base
+inline constexpr std::uint32_t kPluginAbiVersion = 3;  // 3: estimator state and innovation in Block (hot swap)
 inline constexpr const char* kPluginSymbol = "lode_plugin_descriptor";
 
 enum class PluginKind : std::uint32_t {

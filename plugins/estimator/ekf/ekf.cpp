@@ -71,6 +71,7 @@ StepStatus ExtendedEstimator::filter_cycle(bool first) noexcept {
   x_ = x;
   P_ = P;
   innovation_ = innovation;
+  innovation_variance_ = S.diagonal();
   gain_ = K;
   return StepStatus::ok;
 }

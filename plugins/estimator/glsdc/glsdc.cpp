@@ -1,17 +1,16 @@
 #include "glsdc.hpp"
 
-#include "lode/rt_log.hpp"
-
-#include "lode/rt_log.hpp"
-
 #include <Eigen/Cholesky>
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <cstdio>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "lode/plugin.hpp"
+#include "lode/rt_log.hpp"
 
 namespace lode::plugins {
 
@@ -34,6 +33,9 @@ Status Glsdc::configure(ConfigureContext& ctx) {
   mode_ = params.choice("mode", {"3dof", "2dof"}, "3dof") == "2dof" ? Mode::two_dof
                                                                     : Mode::three_dof;
   free_states_ = (mode_ == Mode::two_dof) ? 2 : kStates;
+  invalid_measurement_ = params.choice("invalid_measurement", {"fault", "propagate"}, "fault") == "propagate"
+                             ? InvalidMeasurement::propagate
+                             : InvalidMeasurement::fault;
   iterations_ = params.integer("iterations", 1);
   backoff_ = params.number("backoff", 0.2);
   noise_std_v_ = params.numbers("noise_std_v", std::vector<double>{1e-3});
@@ -101,6 +103,7 @@ Status Glsdc::configure(ConfigureContext& ctx) {
 Status Glsdc::activate() {
   z_ = initial_;
   r_.setZero();
+  has_covariance_ = false;
   cost_value_ = 0.0;
   linearisation_valid_ = false;
   singular_skips_ = 0;
@@ -160,16 +163,27 @@ bool Glsdc::solve(Covariance& r, State& dz) const noexcept {
 }
 
 StepStatus Glsdc::step(const Tick& /*tick*/) noexcept {
+  // Inputs are checked before anything changes: with invalid_measurement: propagate a bad
+  // cycle publishes NaN and leaves the estimate (the next warm start) as it was.
+  const bool propagate = invalid_measurement_ == InvalidMeasurement::propagate;
   for (int i = 0; i < channels_; ++i) {
-    const double v = measurement_[static_cast<std::size_t>(i)];
-    if (!std::isfinite(v)) return fault("non-finite measurement");
-    measured_(i) = v;
+    if (!std::isfinite(measurement_[static_cast<std::size_t>(i)])) {
+      if (!propagate) return fault("non-finite measurement");
+      publish_invalid();
+      return StepStatus::ok;
+    }
   }
+  double theta = 0.0;
   if (mode_ == Mode::two_dof) {
-    const double theta = theta_.connected() ? theta_[0] : initial_(kThetaZ);
-    if (!std::isfinite(theta)) return fault("non-finite theta input");
-    z_(kThetaZ) = theta;
+    theta = theta_.connected() ? theta_[0] : initial_(kThetaZ);
+    if (!std::isfinite(theta)) {
+      if (!propagate) return fault("non-finite theta input");
+      publish_invalid();
+      return StepStatus::ok;
+    }
   }
+  for (int i = 0; i < channels_; ++i) measured_(i) = measurement_[static_cast<std::size_t>(i)];
+  if (mode_ == Mode::two_dof) z_(kThetaZ) = theta;
 
   const State z_before = z_;
   bool singular = false;
@@ -208,6 +222,7 @@ StepStatus Glsdc::step(const Tick& /*tick*/) noexcept {
   State dz;
   if (solve(r, dz)) {
     r_ = r;
+    has_covariance_ = true;
   } else {
     singular = true;  // keep the last good covariance
   }
@@ -231,9 +246,46 @@ void Glsdc::publish() noexcept {
   cost_[0] = cost_value_;
 }
 
+void Glsdc::publish_invalid() noexcept {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (std::size_t a = 0; a < static_cast<std::size_t>(kStates); ++a) pose_[a] = nan;
+  for (std::size_t k = 0; k < static_cast<std::size_t>(kStates * kStates); ++k) covariance_[k] = nan;
+  cost_[0] = nan;
+}
+
+StateLayout Glsdc::state_layout() const {
+  StateLayout layout;
+  layout.elements = {{"x", "m"}, {"y", "m"}, {"theta_z", "rad"}};
+  layout.covariance = true;
+  return layout;
+}
+
+void Glsdc::export_state(double* values, double* covariance) const noexcept {
+  for (int a = 0; a < kStates; ++a) values[a] = z_(a);
+  if (covariance == nullptr) return;
+  for (int a = 0; a < kStates; ++a) {
+    for (int b = 0; b < kStates; ++b) {
+      const bool estimated = has_covariance_ && a < free_states_ && b < free_states_;
+      // Symmetrised: the LDLT solve leaves R asymmetric by an ulp or so (see the header).
+      covariance[a * kStates + b] = estimated ? 0.5 * (r_(a, b) + r_(b, a)) : (a == b ? kUnknownVariance : 0.0);
+    }
+  }
+}
+
+void Glsdc::import_state(const double* values, const double* /*covariance*/, const std::uint8_t* present) noexcept {
+  // The warm start only: R is recomputed from the next measurement (eq. 4.28).
+  for (int a = 0; a < kStates; ++a) {
+    z_(a) = (present[a] != 0 && std::isfinite(values[a])) ? values[a] : initial_(a);
+  }
+  linearisation_valid_ = false;
+}
+
 void Glsdc::describe(Json& out) const {
   out["model"] = model_name_;
   out["mode"] = mode_ == Mode::two_dof ? "2dof" : "3dof";
+  out["invalid_measurement"] = invalid_measurement_ == InvalidMeasurement::propagate
+                                   ? "propagate (NaN pose/covariance/cost for the cycle, estimate kept)"
+                                   : "fault";
   out["iterations"] = iterations_;
   out["backoff"] = backoff_;
   std::vector<double> sigma(static_cast<std::size_t>(channels_));
@@ -266,6 +318,9 @@ constexpr ParamDoc kParams[] = {
     {"noise_std_v", "number | list<number>", "1e-3",
      "channel noise std [V], one value or one per channel: W = diag(1/sigma^2)"},
     {"initial", "list<number>[3]", "[0, 0, 0]", "start estimate x [m], y [m], theta_z [rad]"},
+    {"invalid_measurement", "text", "fault",
+     "fault: a non-finite channel (or theta input) faults the step; propagate: that cycle's pose, covariance "
+     "and cost outputs are NaN, the warm-start pose is kept for the next cycle and the step succeeds"},
 };
 
 constexpr PortDoc kPorts[] = {

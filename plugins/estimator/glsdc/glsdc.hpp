@@ -43,6 +43,16 @@ class Glsdc final : public Block {
   static constexpr int kStates = 3;
   enum StateIndex : int { kX = 0, kY, kThetaZ };
   enum class Mode { three_dof, two_dof };
+  /// What a non-finite measurement channel (or theta input) does: fault (the default), or
+  /// propagate: this cycle's pose, covariance and cost outputs are NaN (a downstream filter
+  /// with invalid_measurement: predict then coasts), the warm-start pose is kept, and the
+  /// step succeeds.
+  enum class InvalidMeasurement { fault, propagate };
+  /// Variance exported for a state the solver does not estimate (theta in 2dof) or before the
+  /// first solve: (1 m)^2 or (1 rad)^2, i.e. "unknown" at the stage's scale, so that the
+  /// exported covariance is positive definite and a filter warm-started from it trusts its
+  /// first measurements instead.
+  static constexpr double kUnknownVariance = 1.0;
 
   /// Channel-sized storage with a fixed capacity: resized in configure(), never in step().
   using ChannelVector = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, kMaxChannels, 1>;
@@ -56,6 +66,18 @@ class Glsdc final : public Block {
   Status activate() override;
   StepStatus step(const Tick& tick) noexcept override;
   void describe(Json& out) const override;
+
+  /// @name Estimator state (hot swap). Layout x [m], y [m], theta_z [rad]: the warm-start
+  /// pose of the next step, with covariance the last R = (H'WH)^-1 published, symmetrised
+  /// (0.5 (R + R'): the published R is the LDLT solve, symmetric only to rounding) (theta row and
+  /// column in 2dof, and everything before the first solve: kUnknownVariance on the diagonal,
+  /// 0 off it). import_state() sets the warm-start pose (absent elements: `initial`).
+  /// GLSDC is a batch solver with no innovation: innovation_size() = 0.
+  //@{
+  [[nodiscard]] StateLayout state_layout() const override;
+  void export_state(double* values, double* covariance) const noexcept override;
+  void import_state(const double* values, const double* covariance, const std::uint8_t* present) noexcept override;
+  //@}
 
   /// @name Test hooks (read-only).
   //@{
@@ -78,11 +100,14 @@ class Glsdc final : public Block {
   /// Returns false when H' W H is singular (Eigen LDLT rcond estimate < kMinRcond).
   bool solve(Covariance& r, State& dz) const noexcept;
   void publish() noexcept;
+  /// invalid_measurement: propagate: NaN on pose, covariance and cost for this cycle.
+  void publish_invalid() noexcept;
 
   // Configuration.
   std::string model_name_;
   ModelPtr<MeasurementModel> model_;
   Mode mode_ = Mode::three_dof;
+  InvalidMeasurement invalid_measurement_ = InvalidMeasurement::fault;
   int free_states_ = kStates;
   int channels_ = 0;
   std::int64_t iterations_ = 1;
@@ -101,6 +126,7 @@ class Glsdc final : public Block {
   // Estimate and work storage (fixed capacity).
   State z_ = State::Zero();
   Covariance r_ = Covariance::Zero();
+  bool has_covariance_ = false;  ///< r_ holds a solved R (false until the first solve)
   double cost_value_ = 0.0;
   ChannelVector measured_;
   ChannelVector predicted_;    ///< h(z) at linearised_at_

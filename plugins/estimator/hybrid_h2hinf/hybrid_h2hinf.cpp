@@ -142,6 +142,33 @@ double error_spectral_radius(const AxisModel& model, const Vector3& gain) {
   return Eigen::EigenSolver<Matrix3>(error_dynamics, false).eigenvalues().cwiseAbs().maxCoeff();
 }
 
+bool blended_prior_covariance(const AxisModel& model, const Vector3& gain, double q, double r, Matrix3& cov) noexcept {
+  Matrix3 i_minus_kh = Matrix3::Identity();
+  i_minus_kh.col(0) -= gain;
+  Matrix3 a = model.phi * i_minus_kh;
+  const Vector3 phi_k = model.phi * gain;
+  Matrix3 p = (phi_k * r) * phi_k.transpose() + (model.upsilon * q) * model.upsilon.transpose();
+  // 64 doublings sum 2^64 terms: converged for any rho(A) < 1 - 1e-18. Stop as soon as the
+  // increment no longer changes any element of P (relative to its own diagonal scale).
+  constexpr int kMaxDoublings = 64;
+  bool converged = false;
+  for (int j = 0; j < kMaxDoublings && !converged; ++j) {
+    const Matrix3 increment = a * p * a.transpose();
+    converged = true;
+    for (int row = 0; row < 3 && converged; ++row) {
+      for (int col = 0; col < 3 && converged; ++col) {
+        const double scale = std::sqrt(std::abs(p(row, row) * p(col, col)));
+        converged = std::abs(increment(row, col)) <= 1e-17 * scale;
+      }
+    }
+    p += increment;
+    a = (a * a).eval();
+    if (!p.allFinite()) return false;
+  }
+  cov = 0.5 * (p + p.transpose());
+  return converged && cov.allFinite();
+}
+
 PositionResponse position_response(const AxisModel& model, const Vector3& gain, double t_s) {
   // x^+_k = (I - K H) Phi x^+_{k-1} + K y_k  =>  p^+(z) / y(z) = e1' (z I - A)^-1 z K.
   using Complex = std::complex<double>;
@@ -254,6 +281,10 @@ Status HybridH2HinfEstimator::configure(ConfigureContext& ctx) {
   const std::string output = params.choice("output", {"filtered", "predicted"}, std::string_view("filtered"));
   timing_ = output == "predicted" ? hybrid::OutputTiming::predicted : hybrid::OutputTiming::filtered;
   initialize_from_first_measurement_ = params.flag("initialize_from_first_measurement", true);
+  invalid_measurement_ = params.choice("invalid_measurement", {"fault", "predict"}, std::string_view("fault")) ==
+                                 "predict"
+                             ? hybrid::InvalidMeasurement::predict
+                             : hybrid::InvalidMeasurement::fault;
 
   ctx.declare_input(measurement_, "measurement", {}, true);
   const Elements* source = ctx.input_source("measurement");
@@ -395,6 +426,10 @@ Status HybridH2HinfEstimator::configure(ConfigureContext& ctx) {
     }
   }
   d_.store(d, std::memory_order_relaxed);
+  if (params.ok() && !update_steady_covariance(d)) {
+    params.fail("d", "d = " + number_text(d) + ": the steady prior covariance of the blended filter "
+                     "(discrete Lyapunov equation P = A P A' + W) has no finite solution on some axis");
+  }
 
   Elements velocity;
   Elements acceleration;
@@ -411,14 +446,29 @@ Status HybridH2HinfEstimator::configure(ConfigureContext& ctx) {
 
 Status HybridH2HinfEstimator::activate() {
   for (std::size_t i = 0; i < axes_; ++i) {
-    posterior_[i].setZero();
+    prior_[i].setZero();
+    start_at_measurement_[i] = initialize_from_first_measurement_;
+    last_innovation_[i] = 0.0;
     pose_[i] = 0.0;
     velocity_[i] = 0.0;
     acceleration_[i] = 0.0;
     innovation_[i] = 0.0;
   }
-  first_cycle_ = true;
+  has_innovation_ = false;
   return Status::ok();
+}
+
+bool HybridH2HinfEstimator::update_steady_covariance(double d) noexcept {
+  std::array<hybrid::Matrix3, kMaxAxes> cov{};
+  for (std::size_t i = 0; i < axes_; ++i) {
+    if (!hybrid::blended_prior_covariance(model_, hybrid::blend(d, kalman_gain_[i], hinf_gain_[i]), q_[i], r_[i],
+                                          cov[i])) {
+      return false;
+    }
+  }
+  steady_cov_ = cov;
+  steady_cov_d_ = d;
+  return true;
 }
 
 double HybridH2HinfEstimator::worst_spectral_radius(double d) const {
@@ -477,29 +527,111 @@ bool HybridH2HinfEstimator::set_tunable(std::size_t index, double value, const c
 }
 
 StepStatus HybridH2HinfEstimator::step(const Tick& /*tick*/) noexcept {
+  // Check every input and compute every axis before touching the state, so that a fault
+  // leaves the filter exactly as it was.
+  const bool coast_on_invalid = invalid_measurement_ == hybrid::InvalidMeasurement::predict;
+  std::array<bool, kMaxAxes> valid{};
   for (std::size_t i = 0; i < axes_; ++i) {
-    if (!std::isfinite(measurement_[i])) return fault("non-finite measurement");
+    valid[i] = std::isfinite(measurement_[i]);
+    if (!valid[i] && !coast_on_invalid) {
+      has_innovation_ = false;
+      return fault("non-finite measurement");
+    }
   }
   // One d for every axis of this cycle, whatever set_mixing() does meanwhile.
   const double d = d_.load(std::memory_order_relaxed);
+  std::array<Vector3, kMaxAxes> posterior{};
+  std::array<Vector3, kMaxAxes> next_prior{};
+  std::array<double, kMaxAxes> residual{};  // y_k - H x^-_k
+  bool all_updated = true;
   for (std::size_t i = 0; i < axes_; ++i) {
-    const double y = measurement_[i];
-    if (first_cycle_ && initialize_from_first_measurement_) posterior_[i] = Vector3(y, 0.0, 0.0);
-    // eq. 24 with the blended gain of eq. 25 (d = 1: 1 * K^K + 0 * K^inf == K^K bit for bit).
-    const Vector3 gain = d == 1.0 ? kalman_gain_[i] : hybrid::blend(d, kalman_gain_[i], hinf_gain_[i]);
-    const Vector3 prior = model_.phi * posterior_[i];
-    const double innovation = y - prior(hybrid::kPosition);
-    const Vector3 posterior = prior + gain * innovation;
-    if (!posterior.allFinite()) return fault("hybrid filter state is not finite");
-    posterior_[i] = posterior;
-    const Vector3 out = timing_ == hybrid::OutputTiming::predicted ? Vector3(model_.phi * posterior) : posterior;
+    if (!valid[i]) {
+      // Coasting (invalid_measurement: predict): x^+_k = x^-_k, x^-_{k+1} = Phi x^-_k.
+      posterior[i] = prior_[i];
+      next_prior[i] = model_.phi * prior_[i];
+      residual[i] = 0.0;
+      all_updated = false;
+    } else {
+      const double y = measurement_[i];
+      const Vector3 prior = start_at_measurement_[i] ? Vector3(y, 0.0, 0.0) : prior_[i];
+      // eq. 24 with the blended gain of eq. 25 (d = 1: 1 * K^K + 0 * K^inf == K^K bit for bit).
+      const Vector3 gain = d == 1.0 ? kalman_gain_[i] : hybrid::blend(d, kalman_gain_[i], hinf_gain_[i]);
+      residual[i] = y - prior(hybrid::kPosition);
+      posterior[i] = prior + gain * residual[i];
+      next_prior[i] = model_.phi * posterior[i];
+    }
+    if (!posterior[i].allFinite() || !next_prior[i].allFinite()) {
+      has_innovation_ = false;
+      return fault("hybrid filter state is not finite");
+    }
+  }
+  for (std::size_t i = 0; i < axes_; ++i) {
+    prior_[i] = next_prior[i];
+    if (valid[i]) start_at_measurement_[i] = false;
+    last_innovation_[i] = residual[i];
+    const Vector3& out = timing_ == hybrid::OutputTiming::predicted ? next_prior[i] : posterior[i];
     pose_[i] = out(hybrid::kPosition);
     velocity_[i] = out(hybrid::kVelocity);
     acceleration_[i] = out(hybrid::kAcceleration);
-    innovation_[i] = innovation;
+    innovation_[i] = residual[i];  // 0 on a coasting axis: the output stays finite
   }
-  first_cycle_ = false;
+  has_innovation_ = all_updated;
+  // A new d (set_tunable()/set_mixing()) changes the steady covariance: a few 3x3 products.
+  if (d != steady_cov_d_) update_steady_covariance(d);
   return StepStatus::ok;
+}
+
+StateLayout HybridH2HinfEstimator::state_layout() const {
+  StateLayout layout;
+  layout.covariance = true;
+  for (const Element& e : measurement_elements_) {
+    layout.elements.push_back({e.name, e.unit});
+    layout.elements.push_back({e.name + "_dot", e.unit + "/s"});
+    layout.elements.push_back({e.name + "_ddot", e.unit + "/s^2"});
+  }
+  return layout;
+}
+
+void HybridH2HinfEstimator::export_state(double* values, double* covariance) const noexcept {
+  const std::size_t n = 3 * axes_;
+  if (covariance != nullptr) std::fill(covariance, covariance + n * n, 0.0);  // the axes are independent
+  for (std::size_t i = 0; i < axes_; ++i) {
+    for (int a = 0; a < 3; ++a) {
+      const std::size_t row = 3 * i + static_cast<std::size_t>(a);
+      values[row] = prior_[i](a);
+      if (covariance == nullptr) continue;
+      for (int b = 0; b < 3; ++b) covariance[row * n + 3 * i + static_cast<std::size_t>(b)] = steady_cov_[i](a, b);
+    }
+  }
+}
+
+void HybridH2HinfEstimator::import_state(const double* values, const double* /*covariance*/,
+                                         const std::uint8_t* present) noexcept {
+  // The gains are steady: only the state is taken. An absent or non-finite element keeps the
+  // block's initial value (0, as after activate()).
+  for (std::size_t i = 0; i < axes_; ++i) {
+    Vector3 x = Vector3::Zero();
+    bool position_given = false;
+    for (int a = 0; a < 3; ++a) {
+      const std::size_t k = 3 * i + static_cast<std::size_t>(a);
+      if (present[k] != 0 && std::isfinite(values[k])) {
+        x(a) = values[k];
+        if (a == hybrid::kPosition) position_given = true;
+      }
+    }
+    prior_[i] = x;
+    // The imported state is the prior; only a missing position still waits for a measurement.
+    start_at_measurement_[i] = initialize_from_first_measurement_ && !position_given;
+  }
+}
+
+bool HybridH2HinfEstimator::innovation(double* residual, double* variance) const noexcept {
+  if (!has_innovation_) return false;
+  for (std::size_t i = 0; i < axes_; ++i) {
+    residual[i] = last_innovation_[i];
+    variance[i] = steady_cov_[i](0, 0) + r_[i];  // H P^- H' + R
+  }
+  return true;
 }
 
 void HybridH2HinfEstimator::describe(Json& out) const {
@@ -507,6 +639,9 @@ void HybridH2HinfEstimator::describe(Json& out) const {
   out["d"] = d;
   out["output"] = timing_ == hybrid::OutputTiming::predicted ? "predicted (H x^-_{k+1})" : "filtered (H x^+_k, eq. 24)";
   out["initialize_from_first_measurement"] = initialize_from_first_measurement_;
+  out["invalid_measurement"] = invalid_measurement_ == hybrid::InvalidMeasurement::predict
+                                   ? "predict (the axis coasts on the time update)"
+                                   : "fault";
   out["period_s"] = period_s_;
   out["phi"] = matrix_json(model_.phi);
   out["upsilon"] = vector_values(model_.upsilon);
@@ -542,6 +677,14 @@ void HybridH2HinfEstimator::describe(Json& out) const {
       axis["hinf_design"] = std::move(h);
     }
     axis["blended_gain"] = vector_values(hybrid::blend(d, kalman_gain_[i], hinf_gain_[i]));
+    {
+      hybrid::Matrix3 cov;
+      if (hybrid::blended_prior_covariance(model_, hybrid::blend(d, kalman_gain_[i], hinf_gain_[i]), q_[i], r_[i], cov)) {
+        axis["steady_prior_covariance"] = matrix_json(cov);
+      } else {
+        axis["steady_prior_covariance"] = "no finite solution";
+      }
+    }
     Json sweep = Json::array();
     for (double weight : kPaperWeights) {
       const Vector3 k = hybrid::blend(weight, kalman_gain_[i], hinf_gain_[i]);
@@ -596,6 +739,10 @@ constexpr ParamDoc kParams[] = {
     {"output", "text", "filtered", "filtered (H x^+_k, eq. 24, what the paper's LQ uses) or predicted (H x^-_{k+1})"},
     {"initialize_from_first_measurement", "bool", "true",
      "the first measurement sets the position state (false: start from 0)"},
+    {"invalid_measurement", "text", "fault",
+     "fault: a non-finite measurement faults the step; predict: that axis skips its measurement update for "
+     "the cycle (x^-_{k+1} = Phi x^-_k, coasting), innovation() reports no update for that cycle and the "
+     "outputs stay finite"},
 };
 
 constexpr PortDoc kPorts[] = {

@@ -32,6 +32,9 @@
 // for every d given to set_mixing() (a convex combination of two stable filters need not be
 // stable).
 //
+// invalid_measurement: predict makes an axis with a non-finite measurement coast on the time
+// update x^-_{k+1} = Phi x^-_k for that cycle instead of faulting.
+//
 // Worked example, 800 Hz, r = 1e-6 m^2 (eq. 26), q = 1e3 m^2/s^6 (eq. 27, x):
 //   K^K = [0.0760, 2.403 1/s, 38.00 1/s^2], rho = 0.9804 (spec §3.3 table);
 //   theta = 5e5 1/m^2, S = diag(1, 0, 0): K^inf = [0.1360, 3.832 1/s, 53.97 1/s^2], rho = 0.9799.
@@ -44,6 +47,7 @@
 #include <array>
 #include <atomic>
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -128,12 +132,29 @@ struct PositionResponse {
 };
 PositionResponse position_response(const AxisModel& model, const Vector3& gain, double t_s);
 
+/// Steady-state a-priori error covariance of the filter x^-_{k+1} = Phi (x^-_k + K (y_k - H x^-_k))
+/// run with a fixed gain K on the model it was designed for (jerk variance q, measurement
+/// variance r): e^-_{k+1} = Phi (I - K H) e^-_k - Phi K v_k + Upsilon w_k, so P solves the discrete
+/// Lyapunov equation
+///   P = A P A' + W,   A = Phi (I - K H),   W = Phi K r K' Phi' + Upsilon q Upsilon'
+/// (Anderson & Moore, Optimal Filtering, 1979, §4.4 on suboptimal filters; with the
+/// Kalman gain it is the DARE's prior covariance). Solved by the squared Smith iteration
+/// P_{j+1} = P_j + A_j P_j A_j', A_{j+1} = A_j^2, P_0 = W (Smith 1968, "Matrix equation
+/// XA + BX = C", SIAM J. Appl. Math. 16(1)): after j steps P_j sums 2^j terms of the series
+/// sum A^k W A'^k, every term symmetric positive semidefinite, so P stays symmetric positive
+/// definite under rounding. Fixed-size 3x3 products only: RT-safe (no allocation). False
+/// when rho(A) >= 1 makes it diverge or the result is not finite.
+bool blended_prior_covariance(const AxisModel& model, const Vector3& gain, double q, double r, Matrix3& cov) noexcept;
+
 /// Per-axis blended gain of eq. 25.
 inline Vector3 blend(double d, const Vector3& kalman_gain, const Vector3& hinf_gain) {
   return d * kalman_gain + (1.0 - d) * hinf_gain;
 }
 
 enum class OutputTiming { filtered, predicted };
+/// What a non-finite measurement does: fault (the default) or predict (that axis coasts on
+/// x^-_{k+1} = Phi x^-_k for the cycle; the step succeeds).
+enum class InvalidMeasurement { fault, predict };
 
 }  // namespace hybrid
 
@@ -156,6 +177,22 @@ class HybridH2HinfEstimator final : public Block {
   [[nodiscard]] double tunable_value(std::size_t index) const noexcept override;
   bool set_tunable(std::size_t index, double value, const char*& why) noexcept override;
 
+  /// @name Estimator state (hot swap). The same layout as estimator.kalman (constant
+  /// acceleration): per axis <n> [u], <n>_dot [u/s], <n>_ddot [u/s^2], axis-major, so the two
+  /// map 1:1. The state is the prior x^-_k of the coming step; the covariance is the steady
+  /// prior covariance of the blended filter at the current d (blended_prior_covariance),
+  /// block diagonal: the filter has no P recursion. import_state() takes the state and
+  /// ignores the covariance (the gains are steady). innovation(): S(i,i) = P(0,0) + r_i.
+  //@{
+  [[nodiscard]] StateLayout state_layout() const override;
+  void export_state(double* values, double* covariance) const noexcept override;
+  void import_state(const double* values, const double* covariance, const std::uint8_t* present) noexcept override;
+  [[nodiscard]] std::size_t innovation_size() const override { return axes_; }
+  bool innovation(double* residual, double* variance) const noexcept override;
+  //@}
+  /// Steady prior covariance of axis i at the d of the last step (or the configured d).
+  [[nodiscard]] const hybrid::Matrix3& steady_covariance(std::size_t axis) const { return steady_cov_[axis]; }
+
   /// Designed (or injected) gains of axis i, for tests and describe().
   [[nodiscard]] const hybrid::Vector3& kalman_gain(std::size_t axis) const { return kalman_gain_[axis]; }
   [[nodiscard]] const hybrid::Vector3& hinf_gain(std::size_t axis) const { return hinf_gain_[axis]; }
@@ -164,11 +201,14 @@ class HybridH2HinfEstimator final : public Block {
  private:
   /// Largest rho((I - K(d) H) Phi) over the axes.
   [[nodiscard]] double worst_spectral_radius(double d) const;
+  /// steady_cov_ for mixing weight d (RT-safe). False if some axis has no finite solution.
+  bool update_steady_covariance(double d) noexcept;
 
   // Parameters and design.
   hybrid::AxisModel model_;
   hybrid::OutputTiming timing_ = hybrid::OutputTiming::filtered;
   bool initialize_from_first_measurement_ = true;
+  hybrid::InvalidMeasurement invalid_measurement_ = hybrid::InvalidMeasurement::fault;
   std::size_t axes_ = 0;
   double period_s_ = 0.0;
   Elements measurement_elements_;
@@ -191,9 +231,16 @@ class HybridH2HinfEstimator final : public Block {
   OutputPort acceleration_;
   OutputPort innovation_;
 
-  // State: x^+_{k-1} per axis.
-  std::array<hybrid::Vector3, hybrid::kMaxAxes> posterior_{};
-  bool first_cycle_ = true;
+  // State: x^-_k per axis (the prior of the coming step; x^+ is formed in step()).
+  std::array<hybrid::Vector3, hybrid::kMaxAxes> prior_{};
+  /// Per axis: the next valid measurement sets the position (initialize_from_first_measurement).
+  std::array<bool, hybrid::kMaxAxes> start_at_measurement_{};
+  std::array<double, hybrid::kMaxAxes> last_innovation_{};
+  bool has_innovation_ = false;  ///< the last step updated every axis with a measurement
+
+  // Steady prior covariance per axis (RT thread only: updated in step() when d changes).
+  std::array<hybrid::Matrix3, hybrid::kMaxAxes> steady_cov_{};
+  double steady_cov_d_ = -1.0;  ///< the d steady_cov_ was computed for
 };
 
 }  // namespace lode::plugins

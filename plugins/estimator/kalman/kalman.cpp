@@ -1,5 +1,6 @@
 #include "kalman.hpp"
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <complex>
@@ -114,6 +115,10 @@ Status KalmanEstimator::configure(ConfigureContext& ctx) {
   const std::string output = params.choice("output", {"predicted", "filtered"}, std::string_view("predicted"));
   timing_ = output == "filtered" ? kalman::OutputTiming::filtered : kalman::OutputTiming::predicted;
   initialize_from_first_measurement_ = params.flag("initialize_from_first_measurement", true);
+  invalid_measurement_ = params.choice("invalid_measurement", {"fault", "predict"}, std::string_view("fault")) ==
+                                 "predict"
+                             ? kalman::InvalidMeasurement::predict
+                             : kalman::InvalidMeasurement::fault;
 
   ctx.declare_input(measurement_, "measurement", {}, true);
   ctx.declare_input(covariance_, "covariance", {}, false);
@@ -210,38 +215,158 @@ Status KalmanEstimator::activate() {
     velocity_[i] = 0.0;
     if (acceleration_.bound()) acceleration_[i] = 0.0;
     innovation_[i] = 0.0;
+    start_at_measurement_[i] = initialize_from_first_measurement_;
   }
-  first_cycle_ = true;
+  has_innovation_ = false;
   return Status::ok();
 }
 
 StepStatus KalmanEstimator::step(const Tick& /*tick*/) noexcept {
   // Check every input before touching any axis, so a fault leaves the filter as it was.
+  const bool coast_on_invalid = invalid_measurement_ == kalman::InvalidMeasurement::predict;
   for (std::size_t i = 0; i < axes_; ++i) {
-    if (!std::isfinite(measurement_[i])) return fault("non-finite measurement");
     const double r = use_covariance_input_ ? covariance_[i * axes_ + i] : r_[i];
-    if (!(r > 0.0) || !std::isfinite(r)) return fault("measurement variance R(i,i) <= 0 or not finite");
+    valid_[i] = true;
+    if (!std::isfinite(measurement_[i])) {
+      if (!coast_on_invalid) {
+        has_innovation_ = false;
+        return fault("non-finite measurement");
+      }
+      valid_[i] = false;
+    }
+    if (!(r > 0.0) || !std::isfinite(r)) {
+      if (!coast_on_invalid) {
+        has_innovation_ = false;
+        return fault("measurement variance R(i,i) <= 0 or not finite");
+      }
+      valid_[i] = false;
+    }
     variance_[i] = r;
   }
-  return motion_ == kalman::Motion::constant_acceleration ? run(ca_filters_) : run(cv_filters_);
+  const StepStatus status =
+      motion_ == kalman::Motion::constant_acceleration ? run(ca_filters_) : run(cv_filters_);
+  if (status != StepStatus::ok) has_innovation_ = false;
+  return status;
 }
 
 template <int N>
 StepStatus KalmanEstimator::run(std::array<kalman::AxisFilter<N>, kMaxAxes>& filters) noexcept {
+  // Every axis is computed first and committed only if all are finite.
+  std::array<typename kalman::AxisFilter<N>::Cycle, kMaxAxes> cycles;
+  bool all_updated = true;
+  for (std::size_t i = 0; i < axes_; ++i) {
+    const bool finite = valid_[i] ? filters[i].compute_update(measurement_[i], variance_[i],
+                                                              start_at_measurement_[i], cycles[i])
+                                  : filters[i].compute_coast(cycles[i]);
+    if (!finite) return fault("Kalman update gave a non-finite state or covariance");
+    all_updated = all_updated && valid_[i];
+  }
   for (std::size_t i = 0; i < axes_; ++i) {
     kalman::AxisFilter<N>& filter = filters[i];
-    if (first_cycle_ && initialize_from_first_measurement_) filter.set_prior_position(measurement_[i]);
-    if (!filter.update_and_propagate(measurement_[i], variance_[i])) {
-      return fault("Kalman update gave a non-finite state or covariance");
-    }
+    filter.commit(cycles[i]);
+    if (valid_[i]) start_at_measurement_[i] = false;
     const auto& x = timing_ == kalman::OutputTiming::predicted ? filter.predicted() : filter.filtered();
     pose_[i] = x(kalman::kPosition);
     velocity_[i] = x(kalman::kVelocity);
     if constexpr (N == 3) acceleration_[i] = x(kalman::kAcceleration);
-    innovation_[i] = filter.innovation();
+    innovation_[i] = filter.innovation();  // 0 on a coasting axis: the output stays finite
   }
-  first_cycle_ = false;
+  has_innovation_ = all_updated;
   return StepStatus::ok;
+}
+
+StateLayout KalmanEstimator::state_layout() const {
+  StateLayout layout;
+  layout.covariance = true;
+  for (const Element& e : measurement_elements_) {
+    layout.elements.push_back({e.name, e.unit});
+    layout.elements.push_back({e.name + "_dot", e.unit + "/s"});
+    if (motion_ == kalman::Motion::constant_acceleration) layout.elements.push_back({e.name + "_ddot", e.unit + "/s^2"});
+  }
+  return layout;
+}
+
+template <int N>
+void KalmanEstimator::export_axes(const std::array<kalman::AxisFilter<N>, kMaxAxes>& filters, double* values,
+                                  double* covariance) const noexcept {
+  const std::size_t n = axes_ * N;
+  if (covariance != nullptr) std::fill(covariance, covariance + n * n, 0.0);  // cross-axis terms are 0
+  for (std::size_t i = 0; i < axes_; ++i) {
+    const auto& x = filters[i].predicted();
+    const auto& p = filters[i].prior_covariance();
+    for (int a = 0; a < N; ++a) {
+      const std::size_t row = i * N + static_cast<std::size_t>(a);
+      values[row] = x(a);
+      if (covariance == nullptr) continue;
+      for (int b = 0; b < N; ++b) covariance[row * n + i * N + static_cast<std::size_t>(b)] = p(a, b);
+    }
+  }
+}
+
+void KalmanEstimator::export_state(double* values, double* covariance) const noexcept {
+  if (motion_ == kalman::Motion::constant_acceleration) {
+    export_axes(ca_filters_, values, covariance);
+  } else {
+    export_axes(cv_filters_, values, covariance);
+  }
+}
+
+template <int N>
+void KalmanEstimator::import_axes(std::array<kalman::AxisFilter<N>, kMaxAxes>& filters, const double* values,
+                                  const double* covariance, const std::uint8_t* present) noexcept {
+  using Matrix = typename kalman::AxisFilter<N>::Matrix;
+  using Vector = typename kalman::AxisFilter<N>::Vector;
+  const std::size_t n = axes_ * N;
+  for (std::size_t i = 0; i < axes_; ++i) {
+    const double p0 = filters[i].p0();
+    // The block's own initial values (activate(): x^- = 0, P^- = p0 I) where nothing usable
+    // is given; a non-finite value counts as absent.
+    Vector x = Vector::Zero();
+    Matrix p = p0 * Matrix::Identity();
+    std::array<bool, N> given{};
+    for (int a = 0; a < N; ++a) {
+      const std::size_t k = i * N + static_cast<std::size_t>(a);
+      given[static_cast<std::size_t>(a)] = present[k] != 0 && std::isfinite(values[k]);
+      if (given[static_cast<std::size_t>(a)]) x(a) = values[k];
+    }
+    if (covariance != nullptr) {
+      for (int a = 0; a < N; ++a) {
+        for (int b = 0; b < N; ++b) {
+          if (!given[static_cast<std::size_t>(a)] || !given[static_cast<std::size_t>(b)]) continue;
+          p(a, b) = covariance[(i * N + static_cast<std::size_t>(a)) * n + i * N + static_cast<std::size_t>(b)];
+        }
+      }
+    }
+    filters[i].set_prior(x, kalman::usable_covariance<N>(p, p0));
+    // The imported state is the prior: no start from the first measurement, unless the
+    // position itself was not given (then the next measurement still places it).
+    start_at_measurement_[i] = initialize_from_first_measurement_ && !given[kalman::kPosition];
+  }
+}
+
+void KalmanEstimator::import_state(const double* values, const double* covariance,
+                                   const std::uint8_t* present) noexcept {
+  if (motion_ == kalman::Motion::constant_acceleration) {
+    import_axes(ca_filters_, values, covariance, present);
+  } else {
+    import_axes(cv_filters_, values, covariance, present);
+  }
+}
+
+template <int N>
+bool KalmanEstimator::innovation_axes(const std::array<kalman::AxisFilter<N>, kMaxAxes>& filters, double* residual,
+                                      double* variance) const noexcept {
+  if (!has_innovation_) return false;
+  for (std::size_t i = 0; i < axes_; ++i) {
+    residual[i] = filters[i].innovation();
+    variance[i] = filters[i].innovation_variance();
+  }
+  return true;
+}
+
+bool KalmanEstimator::innovation(double* residual, double* variance) const noexcept {
+  return motion_ == kalman::Motion::constant_acceleration ? innovation_axes(ca_filters_, residual, variance)
+                                                          : innovation_axes(cv_filters_, residual, variance);
 }
 
 template <int N>
@@ -297,6 +422,9 @@ void KalmanEstimator::describe(Json& out) const {
   out["motion"] = motion_ == kalman::Motion::constant_acceleration ? "constant_acceleration" : "constant_velocity";
   out["output"] = timing_ == kalman::OutputTiming::predicted ? "predicted (x^-_{k+1})" : "filtered (x^+_k)";
   out["initialize_from_first_measurement"] = initialize_from_first_measurement_;
+  out["invalid_measurement"] = invalid_measurement_ == kalman::InvalidMeasurement::predict
+                                   ? "predict (the axis coasts on the time update)"
+                                   : "fault";
   out["period_s"] = period_s_;
   out["measurement_variance"] = r_.empty() ? "covariance input (diagonal of R_k)"
                                            : "covariance input if connected, else r";
@@ -323,6 +451,10 @@ constexpr ParamDoc kParams[] = {
     {"output", "text", "predicted", "predicted (x^-_{k+1}, as the thesis outputs) or filtered (x^+_k)"},
     {"initialize_from_first_measurement", "bool", "true",
      "position state starts at the first measurement (false: x^-_0 = 0, the thesis)"},
+    {"invalid_measurement", "text", "fault",
+     "fault: a non-finite measurement or a non-finite/non-positive R(i,i) faults the step; predict: that axis "
+     "skips its measurement update for the cycle (time update only, coasting), innovation() reports no "
+     "update for that cycle and the outputs stay finite"},
 };
 
 constexpr PortDoc kPorts[] = {

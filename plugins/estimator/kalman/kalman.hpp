@@ -24,16 +24,21 @@
 //   x^+  = x^- + K (y - H x^-)
 //   P^+  = (I - K H) P^- (I - K H)^T + K R K^T        (Joseph form, see covariance_step)
 //   x^-  = Phi x^+,   P^- = Phi P^+ Phi^T + Upsilon q Upsilon^T
+// invalid_measurement: predict turns a non-finite y_k(i) (or a non-finite or non-positive
+// R_k(i,i)) into a time update of that axis alone (x^-_{k+1} = Phi x^-_k, P^-_{k+1} =
+// Phi P^-_k Phi^T + Upsilon q Upsilon^T): the filter coasts instead of faulting.
 // At 800 Hz (T = 1.25 ms) with q = 100 m^2/s^6 and r = 2.2e-10 m^2 the steady gain is
 // K = [0.197, 17.2 1/s, 755 1/s^2] and the error poles sit at |ln z|/T ~ 88 rad/s (spec §4.3).
 //
 // Threads: configure()/activate()/describe() on the loader thread, step() on the RT thread.
 #pragma once
 
+#include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <array>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -52,6 +57,11 @@ inline constexpr int kAcceleration = 2;
 
 enum class Motion { constant_velocity, constant_acceleration };
 enum class OutputTiming { predicted, filtered };
+/// What a non-finite measurement (or a non-finite or non-positive R(i,i)) does.
+enum class InvalidMeasurement {
+  fault,   ///< the step faults, nothing changes (the default)
+  predict  ///< that axis coasts on the time update for this cycle; the step succeeds
+};
 
 /// Discrete model of one axis with N states (2: constant velocity, 3: constant acceleration).
 template <int N>
@@ -110,12 +120,55 @@ inline void covariance_step(const AxisModel<N>& model,
   next_prior_cov = 0.5 * (next_prior_cov + next_prior_cov.transpose()).eval();
 }
 
+/// Time update alone (no measurement): P^-_{k+1} = Phi P^-_k Phi^T + Upsilon q Upsilon^T,
+/// symmetrised. Used when a measurement is invalid and the axis coasts
+/// (invalid_measurement: predict).
+template <int N>
+inline void covariance_predict(const AxisModel<N>& model, const typename AxisModel<N>::Matrix& process_noise,
+                               const typename AxisModel<N>::Matrix& prior_cov,
+                               typename AxisModel<N>::Matrix& next_prior_cov) noexcept {
+  next_prior_cov = model.phi * prior_cov * model.phi.transpose() + process_noise;
+  next_prior_cov = 0.5 * (next_prior_cov + next_prior_cov.transpose()).eval();
+}
+
+/// A covariance the filter can run with, made from whatever a hot swap hands over (RT-safe):
+/// symmetrised; if that is not finite or not positive definite (Cholesky fails), the cross
+/// terms are dropped and every diagonal element that is not finite and > 0 becomes p0.
+template <int N>
+inline typename AxisModel<N>::Matrix usable_covariance(const typename AxisModel<N>::Matrix& p, double p0) noexcept {
+  using Matrix = typename AxisModel<N>::Matrix;
+  Matrix sym = 0.5 * (p + p.transpose());
+  if (sym.allFinite()) {
+    const Eigen::LLT<Matrix> llt(sym);
+    if (llt.info() == Eigen::Success) return sym;
+  }
+  Matrix diagonal = Matrix::Zero();
+  for (int a = 0; a < N; ++a) {
+    const double v = p(a, a);
+    diagonal(a, a) = (std::isfinite(v) && v > 0.0) ? v : p0;
+  }
+  return diagonal;
+}
+
 /// One axis of the filter: fixed-size state and covariance, no allocation anywhere.
+/// A cycle is computed into a Cycle (compute_update() or compute_coast()) and committed only
+/// once every axis has succeeded, so a fault on one axis leaves all of them as they were.
 template <int N>
 class AxisFilter {
  public:
   using Matrix = typename AxisModel<N>::Matrix;
   using Vector = typename AxisModel<N>::Vector;
+
+  /// What one cycle produces, before it is committed.
+  struct Cycle {
+    Vector next_prior_state = Vector::Zero();  ///< x^-_{k+1}
+    Matrix next_prior_cov = Matrix::Identity();  ///< P^-_{k+1}
+    Vector posterior_state = Vector::Zero();   ///< x^+_k (= x^-_k when coasting)
+    Vector gain = Vector::Zero();
+    double innovation = 0.0;                   ///< y_k - H x^-_k (0 when coasting)
+    double innovation_variance = 0.0;          ///< S = H P^-_k H^T + r (0 when coasting)
+    bool updated = false;                      ///< false: time update only
+  };
 
   void configure(const AxisModel<N>& model, double p0) {
     model_ = model;
@@ -129,30 +182,52 @@ class AxisFilter {
     prior_state_.setZero();
     prior_cov_ = p0_ * Matrix::Identity();
     posterior_state_.setZero();
+    gain_.setZero();
+    innovation_ = 0.0;
+    innovation_variance_ = 0.0;
   }
 
-  /// Start from the first measurement instead of 0 (no start-up transient).
-  void set_prior_position(double position) noexcept { prior_state_(kPosition) = position; }
+  /// Measurement update and propagation of Table III with measurement variance r > 0. With
+  /// `start_at_measurement` the prior position is first set to the measurement (the block's
+  /// initialize_from_first_measurement). False if the result is not finite.
+  bool compute_update(double measurement, double r, bool start_at_measurement, Cycle& out) const noexcept {
+    Vector prior_state = prior_state_;
+    if (start_at_measurement) prior_state(kPosition) = measurement;
+    const double innovation = measurement - prior_state(kPosition);
+    covariance_step(model_, process_noise_, prior_cov_, r, out.gain, out.next_prior_cov);
+    out.posterior_state = prior_state + out.gain * innovation;
+    out.next_prior_state = model_.phi * out.posterior_state;
+    out.innovation = innovation;
+    out.innovation_variance = prior_cov_(0, 0) + r;  // H P^- H^T + R, the gain's denominator
+    out.updated = true;
+    return out.next_prior_state.allFinite() && out.next_prior_cov.allFinite() && out.next_prior_cov(0, 0) > 0.0;
+  }
 
-  /// Measurement update and propagation of Table III with measurement variance r > 0.
-  /// Returns false, leaving the filter unchanged, if the result is not finite.
-  bool update_and_propagate(double measurement, double r) noexcept {
-    const double innovation = measurement - prior_state_(kPosition);
-    Vector gain;
-    Matrix next_prior_cov;
-    covariance_step(model_, process_noise_, prior_cov_, r, gain, next_prior_cov);
-    const Vector posterior_state = prior_state_ + gain * innovation;
-    const Vector next_prior_state = model_.phi * posterior_state;
+  /// Time update only (coasting): x^+_k = x^-_k, x^-_{k+1} = Phi x^-_k, P as covariance_predict.
+  bool compute_coast(Cycle& out) const noexcept {
+    covariance_predict(model_, process_noise_, prior_cov_, out.next_prior_cov);
+    out.posterior_state = prior_state_;
+    out.next_prior_state = model_.phi * prior_state_;
+    out.gain = gain_;
+    out.innovation = 0.0;
+    out.innovation_variance = 0.0;
+    out.updated = false;
+    return out.next_prior_state.allFinite() && out.next_prior_cov.allFinite() && out.next_prior_cov(0, 0) > 0.0;
+  }
 
-    if (!next_prior_state.allFinite() || !next_prior_cov.allFinite() || !(next_prior_cov(0, 0) > 0.0)) {
-      return false;
-    }
-    innovation_ = innovation;
-    gain_ = gain;
-    posterior_state_ = posterior_state;
-    prior_state_ = next_prior_state;
-    prior_cov_ = next_prior_cov;
-    return true;
+  void commit(const Cycle& c) noexcept {
+    prior_state_ = c.next_prior_state;
+    prior_cov_ = c.next_prior_cov;
+    posterior_state_ = c.posterior_state;
+    gain_ = c.gain;
+    innovation_ = c.innovation;
+    innovation_variance_ = c.innovation_variance;
+  }
+
+  /// Hot-swap warm start: the prior of the coming cycle (P must be symmetric positive definite).
+  void set_prior(const Vector& state, const Matrix& cov) noexcept {
+    prior_state_ = state;
+    prior_cov_ = cov;
   }
 
   [[nodiscard]] const Vector& predicted() const noexcept { return prior_state_; }   ///< x^-_{k+1}
@@ -160,6 +235,8 @@ class AxisFilter {
   [[nodiscard]] const Matrix& prior_covariance() const noexcept { return prior_cov_; }
   [[nodiscard]] const Vector& gain() const noexcept { return gain_; }
   [[nodiscard]] double innovation() const noexcept { return innovation_; }
+  [[nodiscard]] double innovation_variance() const noexcept { return innovation_variance_; }
+  [[nodiscard]] double p0() const noexcept { return p0_; }
   [[nodiscard]] const AxisModel<N>& model() const noexcept { return model_; }
 
  private:
@@ -171,6 +248,7 @@ class AxisFilter {
   Vector posterior_state_ = Vector::Zero();
   Vector gain_ = Vector::Zero();
   double innovation_ = 0.0;
+  double innovation_variance_ = 0.0;
 };
 
 /// Steady-state solution of the Table III recursion at constant r (off the RT thread).
@@ -201,9 +279,32 @@ class KalmanEstimator final : public Block {
   StepStatus step(const Tick& tick) noexcept override;
   void describe(Json& out) const override;
 
+  /// @name Estimator state (hot swap). Layout per axis, axis-major: <n> [u], <n>_dot [u/s]
+  /// (and <n>_ddot [u/s^2] for constant_acceleration), with the full block-diagonal
+  /// covariance. The exported state is the prior of the coming step, x^-_k and P^-_k.
+  //@{
+  [[nodiscard]] StateLayout state_layout() const override;
+  void export_state(double* values, double* covariance) const noexcept override;
+  void import_state(const double* values, const double* covariance, const std::uint8_t* present) noexcept override;
+  [[nodiscard]] std::size_t innovation_size() const override { return axes_; }
+  bool innovation(double* residual, double* variance) const noexcept override;
+  //@}
+
  private:
+  [[nodiscard]] int states_per_axis() const noexcept {
+    return motion_ == kalman::Motion::constant_acceleration ? 3 : 2;
+  }
   template <int N>
   StepStatus run(std::array<kalman::AxisFilter<N>, kalman::kMaxAxes>& filters) noexcept;
+  template <int N>
+  void export_axes(const std::array<kalman::AxisFilter<N>, kalman::kMaxAxes>& filters, double* values,
+                   double* covariance) const noexcept;
+  template <int N>
+  void import_axes(std::array<kalman::AxisFilter<N>, kalman::kMaxAxes>& filters, const double* values,
+                   const double* covariance, const std::uint8_t* present) noexcept;
+  template <int N>
+  bool innovation_axes(const std::array<kalman::AxisFilter<N>, kalman::kMaxAxes>& filters, double* residual,
+                       double* variance) const noexcept;
   template <int N>
   void describe_axes(const std::array<kalman::AxisFilter<N>, kalman::kMaxAxes>& filters,
                      Json& out) const;
@@ -212,6 +313,7 @@ class KalmanEstimator final : public Block {
   kalman::Motion motion_ = kalman::Motion::constant_acceleration;
   kalman::OutputTiming timing_ = kalman::OutputTiming::predicted;
   bool initialize_from_first_measurement_ = true;
+  kalman::InvalidMeasurement invalid_measurement_ = kalman::InvalidMeasurement::fault;
   std::size_t axes_ = 0;
   double period_s_ = 0.0;
   std::vector<double> q_;
@@ -229,8 +331,12 @@ class KalmanEstimator final : public Block {
 
   // State.
   bool use_covariance_input_ = false;
-  bool first_cycle_ = true;
+  /// Per axis: the next valid measurement sets the prior position (initialize_from_first_measurement).
+  std::array<bool, kalman::kMaxAxes> start_at_measurement_{};
   std::array<double, kalman::kMaxAxes> variance_{};  ///< R of this cycle, per axis
+  std::array<bool, kalman::kMaxAxes> valid_{};       ///< measurement and R usable this cycle
+  /// The last step updated every axis with a measurement (innovation() is meaningful).
+  bool has_innovation_ = false;
   std::array<kalman::AxisFilter<3>, kalman::kMaxAxes> ca_filters_{};
   std::array<kalman::AxisFilter<2>, kalman::kMaxAxes> cv_filters_{};
 };

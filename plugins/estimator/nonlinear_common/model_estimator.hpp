@@ -27,6 +27,7 @@
 #include <array>
 #include <cmath>
 #include <complex>
+#include <cstdint>
 #include <cstdio>
 #include <limits>
 #include <string>
@@ -183,6 +184,22 @@ class ModelEstimator : public Block {
   StepStatus step(const Tick& tick) noexcept final;
   void describe(Json& out) const final;
 
+  /// @name Estimator state (hot swap). Layout: the process state's names and units, with the
+  /// covariance P. The exported state is what the next step() starts from, x_{k-1|k-1} and
+  /// P_{k-1|k-1} (the cycle predicts from it with u_{k-1}, then updates with y_k).
+  /// import_state() sets them (absent or non-finite elements: initial_state and p0, with zero
+  /// cross terms to the given ones; P symmetrised, and if that is not positive definite its
+  /// diagonal alone is kept) and ends the first-cycle case: the next step() predicts from the
+  /// import. innovation(): y_k - y^_{k|k-1} and the diagonal of the innovation covariance
+  /// (P_yy for the UKF, S = H P^- H' + R for the EKF).
+  //@{
+  [[nodiscard]] StateLayout state_layout() const final;
+  void export_state(double* values, double* covariance) const noexcept final;
+  void import_state(const double* values, const double* covariance, const std::uint8_t* present) noexcept final;
+  [[nodiscard]] std::size_t innovation_size() const final { return m_; }
+  bool innovation(double* residual, double* variance) const noexcept final;
+  //@}
+
   /// @name Read access (tests, describe).
   //@{
   [[nodiscard]] std::size_t state_size() const { return n_; }
@@ -198,9 +215,10 @@ class ModelEstimator : public Block {
   virtual void read_filter_params(Params& params) = 0;
   /// Sizes, models and noise are known and valid: derive the algorithm's constants.
   virtual Status prepare_filter(Params& params) = 0;
-  /// activate(): x_ and P_ were reset to the initial condition.
+  /// activate() or import_state(): x_ and P_ were set (initial condition or warm start).
   virtual void reset_filter() noexcept {}
-  /// One cycle (see the file comment). On success x_, P_, innovation_ hold the new values; on
+  /// One cycle (see the file comment). On success x_, P_, innovation_ and
+  /// innovation_variance_ hold the new values; on
   /// a fault they are left unchanged and fault(reason) has been called.
   virtual StepStatus filter_cycle(bool first) noexcept = 0;
   virtual void describe_filter(Json& out) const = 0;
@@ -281,6 +299,7 @@ class ModelEstimator : public Block {
   StateMatrix P_;
   ChannelVector y_;           ///< this cycle's measurement
   ChannelVector innovation_;  ///< y_k - h(x_{k|k-1})
+  ChannelVector innovation_variance_;  ///< diagonal of the innovation covariance of that update
   InputVector u_;             ///< the input held over the last period
 
  private:
@@ -300,6 +319,7 @@ class ModelEstimator : public Block {
   std::vector<std::size_t> measurement_index_;  ///< channel c is element measurement_index_[c] of the input
   std::vector<std::size_t> input_index_;
   bool first_ = true;
+  bool has_innovation_ = false;  ///< the last step made a measurement update
 
   InputPort measurement_in_;
   InputPort input_in_;
@@ -430,6 +450,7 @@ inline Status ModelEstimator::configure(ConfigureContext& ctx) {
   u_.setZero(static_cast<Eigen::Index>(nu_));
   y_.setZero(static_cast<Eigen::Index>(m_));
   innovation_.setZero(static_cast<Eigen::Index>(m_));
+  innovation_variance_.setZero(static_cast<Eigen::Index>(m_));
 
   // The model must be finite at the initial condition, or the first cycle would fault.
   {
@@ -458,7 +479,9 @@ inline Status ModelEstimator::activate() {
   P_ = P0_;
   u_.setZero(static_cast<Eigen::Index>(nu_));
   innovation_.setZero(static_cast<Eigen::Index>(m_));
+  innovation_variance_.setZero(static_cast<Eigen::Index>(m_));
   first_ = true;
+  has_innovation_ = false;
   reset_filter();
   for (std::size_t i = 0; i < n_; ++i) {
     state_out_[i] = x_(static_cast<Eigen::Index>(i));
@@ -479,8 +502,12 @@ inline StepStatus ModelEstimator::step(const Tick& /*tick*/) noexcept {
     if (!std::isfinite(v)) return fault("non-finite measurement");
     y_(static_cast<Eigen::Index>(c)) = v;
   }
-  if (filter_cycle(first_) != StepStatus::ok) return StepStatus::fault;
+  if (filter_cycle(first_) != StepStatus::ok) {
+    has_innovation_ = false;
+    return StepStatus::fault;
+  }
   first_ = false;
+  has_innovation_ = true;
   for (std::size_t i = 0; i < n_; ++i) {
     const auto k = static_cast<Eigen::Index>(i);
     state_out_[i] = x_(k);
@@ -488,6 +515,77 @@ inline StepStatus ModelEstimator::step(const Tick& /*tick*/) noexcept {
   }
   for (std::size_t c = 0; c < m_; ++c) innovation_out_[c] = innovation_(static_cast<Eigen::Index>(c));
   return StepStatus::ok;
+}
+
+inline StateLayout ModelEstimator::state_layout() const {
+  StateLayout layout;
+  if (process_) layout.elements = process_->process_state();
+  layout.covariance = true;
+  return layout;
+}
+
+inline void ModelEstimator::export_state(double* values, double* covariance) const noexcept {
+  for (std::size_t i = 0; i < n_; ++i) {
+    const auto a = static_cast<Eigen::Index>(i);
+    values[i] = x_(a);
+    if (covariance == nullptr) continue;
+    for (std::size_t j = 0; j < n_; ++j) covariance[i * n_ + j] = P_(a, static_cast<Eigen::Index>(j));
+  }
+}
+
+inline void ModelEstimator::import_state(const double* values, const double* covariance,
+                                         const std::uint8_t* present) noexcept {
+  const auto n = static_cast<Eigen::Index>(n_);
+  std::array<bool, kMaxStates> given{};
+  StateVector x = x0_;
+  for (std::size_t i = 0; i < n_; ++i) {
+    given[i] = present[i] != 0 && std::isfinite(values[i]);
+    if (given[i]) x(static_cast<Eigen::Index>(i)) = values[i];
+  }
+  StateMatrix P = P0_;
+  if (covariance != nullptr) {
+    for (std::size_t i = 0; i < n_; ++i) {
+      for (std::size_t j = 0; j < n_; ++j) {
+        const auto a = static_cast<Eigen::Index>(i);
+        const auto b = static_cast<Eigen::Index>(j);
+        if (given[i] && given[j]) {
+          P(a, b) = covariance[i * n_ + j];
+        } else if (given[i] != given[j]) {
+          P(a, b) = 0.0;  // no correlation between a handed-over element and an initialised one
+        }
+      }
+    }
+  }
+  // Symmetric positive definite whatever was handed over: symmetrise; if that is not finite or
+  // Cholesky fails, keep the diagonal (p0 where it is not finite and > 0).
+  StateMatrix sym = P;
+  sym = (0.5 * (P + P.transpose())).eval();
+  bool usable = sym.allFinite();
+  if (usable) {
+    const Eigen::LLT<StateMatrix> llt(sym);
+    usable = llt.info() == Eigen::Success;
+  }
+  if (!usable) {
+    for (Eigen::Index i = 0; i < n; ++i) {
+      for (Eigen::Index j = 0; j < n; ++j) {
+        const double v = P(i, i);
+        sym(i, j) = i != j ? 0.0 : (std::isfinite(v) && v > 0.0 ? v : P0_(i, i));
+      }
+    }
+  }
+  x_ = x;
+  P_ = sym;
+  first_ = false;  // the next step predicts from the import
+  reset_filter();
+}
+
+inline bool ModelEstimator::innovation(double* residual, double* variance) const noexcept {
+  if (!has_innovation_) return false;
+  for (std::size_t c = 0; c < m_; ++c) {
+    residual[c] = innovation_(static_cast<Eigen::Index>(c));
+    variance[c] = innovation_variance_(static_cast<Eigen::Index>(c));
+  }
+  return true;
 }
 
 inline void ModelEstimator::describe_linearisation(Json& out) const {

@@ -46,6 +46,7 @@ StepStatus UnscentedEstimator::filter_cycle(bool first) noexcept {
   x_ = core_.x();
   P_ = core_.P();
   innovation_ = core_.innovation();
+  innovation_variance_ = core_.innovation_variance();
   return StepStatus::ok;
 }
 

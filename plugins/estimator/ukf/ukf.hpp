@@ -126,6 +126,7 @@ class UnscentedCore {
     y_centre_.setZero(m_);
     upsilon_.setZero(m_, points_);
     innovation_.setZero(m_);
+    innovation_variance_.setZero(m_);
     y_hat_.setZero(m_);
     gain_.setZero(n_, m_);
   }
@@ -243,6 +244,7 @@ class UnscentedCore {
     x_ = x_new;
     P_ = P;
     innovation_ = innovation;
+    innovation_variance_ = Pyy.diagonal();
     y_hat_ = y_hat;
     gain_ = K;
     return true;
@@ -251,6 +253,8 @@ class UnscentedCore {
   [[nodiscard]] const Vector& x() const noexcept { return x_; }
   [[nodiscard]] const Matrix& P() const noexcept { return P_; }
   [[nodiscard]] const MVector& innovation() const noexcept { return innovation_; }
+  /// diag(P_yy) of the last update (P_yy includes R).
+  [[nodiscard]] const MVector& innovation_variance() const noexcept { return innovation_variance_; }
   [[nodiscard]] const MVector& predicted_measurement() const noexcept { return y_hat_; }
   [[nodiscard]] const Gain& gain() const noexcept { return gain_; }
 
@@ -290,6 +294,7 @@ class UnscentedCore {
   MVector y_centre_;  ///< h(chi_0) (about_centre)
   MPoints upsilon_;   ///< deviations h(chi_i) - h(chi_0), or absolute (raw)
   MVector innovation_;
+  MVector innovation_variance_;
   MVector y_hat_;
   Gain gain_;
   Eigen::LLT<Matrix> llt_;

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <numbers>
 #include <set>
 
@@ -118,6 +119,40 @@ Status SimBoard::configure(ConfigureContext& ctx) {
     substeps_ = 1;
   }
 
+  // --- fault injection --------------------------------------------------------------------
+  inject_channel_ = -1;
+  if (std::optional<Params> inject = params.optional_child("inject_nan")) {
+    const std::string channel = inject->text("channel");
+    const double start_s = inject->number("start_s");
+    const double duration_s = inject->number("duration_s");
+    inject->check(std::isfinite(start_s) && start_s >= 0.0, "start_s",
+                  "must be >= 0 s (scheduled time since start), got " + number_text(start_s));
+    inject->check(std::isfinite(duration_s) && duration_s > 0.0, "duration_s",
+                  "must be > 0 s, got " + number_text(duration_s));
+    if (sensors_status) {
+      std::size_t index = 0;
+      bool found = false;
+      std::string names;
+      for (const auto& slot : sensors_) {
+        for (const auto& e : slot.model->channels()) {
+          names += (names.empty() ? "" : ", ") + e.name;
+          if (!found && e.name == channel) {
+            found = true;
+            inject_channel_ = static_cast<std::int64_t>(index);
+          }
+          if (!found) ++index;
+        }
+      }
+      if (!found) inject->fail("channel", "no channel '" + channel + "' on this board (channels: " + names + ")");
+    }
+    if (inject->ok()) {
+      inject_start_ns_ = std::llround(start_s * 1e9);
+      inject_end_ns_ = inject_start_ns_ + std::llround(duration_s * 1e9);
+    } else {
+      inject_channel_ = -1;
+    }
+  }
+
   // --- ports and buffers ------------------------------------------------------------------
   // Declared even when something above failed, so that the pipeline reports the real
   // problem and not a missing port on top of it.
@@ -221,6 +256,7 @@ Status SimBoard::activate() {
   spare_gaussian_ = 0.0;
   safe_.store(false, std::memory_order_relaxed);
   for (auto& u : held_command_) u = 0.0;
+  inject_live_channel_.store(-1, std::memory_order_relaxed);
   // Outputs are valid before the first cycle: the noise-free sample of the initial state.
   if (sample(0, false) != StepStatus::ok) return Status::error(fault_reason());
   saturations_.store(0, std::memory_order_relaxed);
@@ -230,7 +266,14 @@ Status SimBoard::activate() {
 
 StepStatus SimBoard::step(const Tick& tick) noexcept { return sample(tick.time_ns, true); }
 
-StepStatus SimBoard::sample(std::int64_t time_ns, bool with_noise) noexcept {
+bool SimBoard::injected(std::size_t c, std::int64_t time_ns) const noexcept {
+  const auto channel = static_cast<std::int64_t>(c);
+  if (channel == inject_live_channel_.load(std::memory_order_relaxed)) return true;
+  return channel == inject_channel_ && time_ns >= inject_start_ns_ && time_ns < inject_end_ns_;
+}
+
+StepStatus SimBoard::sample(std::int64_t time_ns, bool in_cycle) noexcept {
+  const bool with_noise = in_cycle;
   plant_->output(truth_buffer_.data());
   for (std::size_t i = 0; i < truth_buffer_.size(); ++i) {
     if (!std::isfinite(truth_buffer_[i])) return fault("non-finite plant output");
@@ -274,6 +317,11 @@ StepStatus SimBoard::sample(std::int64_t time_ns, bool with_noise) noexcept {
       // No converter modelled: counts carry the volts unchanged (an LSB of 1 V).
       counts_[c] = volts;
       signals_[c] = volts;
+    }
+    // After the noise draw, so the generator's sequence does not depend on the injection.
+    if (in_cycle && injected(c, time_ns)) {
+      counts_[c] = std::numeric_limits<double>::quiet_NaN();
+      signals_[c] = std::numeric_limits<double>::quiet_NaN();
     }
   }
   if (saturated > 0) {
@@ -337,6 +385,29 @@ void SimBoard::advance_plant(double dt_s, const double* u) noexcept {
 
 void SimBoard::drive_safe() noexcept { safe_.store(true, std::memory_order_relaxed); }
 
+std::vector<Tunable> SimBoard::tunables() const {
+  return {{"inject_nan_channel", "1", -1.0, static_cast<double>(channel_count_) - 1.0, true,
+           "index of a channel whose signals and counts are NaN on every cycle from the next one "
+           "(fault injection); -1 = off"}};
+}
+
+double SimBoard::tunable_value(std::size_t index) const noexcept {
+  return index == 0 ? static_cast<double>(inject_live_channel_.load(std::memory_order_relaxed)) : 0.0;
+}
+
+bool SimBoard::set_tunable(std::size_t index, double value, const char*& why) noexcept {
+  if (index != 0) {
+    why = "no such parameter";
+    return false;
+  }
+  if (!(value >= -1.0 && value <= static_cast<double>(channel_count_) - 1.0) || value != std::floor(value)) {
+    why = "inject_nan_channel must be an integer channel index, or -1 for off";
+    return false;
+  }
+  inject_live_channel_.store(static_cast<std::int64_t>(value), std::memory_order_relaxed);
+  return true;
+}
+
 void SimBoard::describe(Json& out) const {
   out["plant"] = plant_name_;
   Json plant = Json::object();
@@ -379,6 +450,15 @@ void SimBoard::describe(Json& out) const {
   out["adc_saturations"] = static_cast<double>(saturation_count());
   out["command_clamps"] = static_cast<double>(command_clamp_count());
   out["safe"] = safe();
+  if (inject_channel_ >= 0) {
+    Json inject = Json::object();
+    inject["channel_index"] = static_cast<double>(inject_channel_);
+    inject["start_s"] = static_cast<double>(inject_start_ns_) * 1e-9;
+    inject["end_s"] = static_cast<double>(inject_end_ns_) * 1e-9;
+    inject["window"] = "start_s <= scheduled time < end_s";
+    out["inject_nan"] = std::move(inject);
+  }
+  out["inject_nan_channel"] = static_cast<double>(inject_live_channel_.load(std::memory_order_relaxed));
 }
 
 namespace {
@@ -400,6 +480,10 @@ constexpr ParamDoc kParams[] = {
      "command held after a fault or drive_safe() [plant input units]"},
     {"command_limit", "list<number>", "none", "per plant input |u| clamp [plant input units]"},
     {"substeps", "integer", "1", "plant integration steps per cycle"},
+    {"inject_nan", "map", "none",
+     "fault injection: {channel: <channel name>, start_s: <s, >= 0>, duration_s: <s, > 0>} makes that "
+     "channel's signals and counts NaN on cycles whose scheduled time is in [start_s, start_s + duration_s); "
+     "tunable inject_nan_channel (index, -1 = off) does it live"},
 };
 
 constexpr PortDoc kPorts[] = {

@@ -21,6 +21,13 @@
 // with it held constant. The sample of cycle k+1 is therefore the first to show the command
 // of cycle k, as on a real board.
 //
+// Fault injection (tests and demos): `inject_nan: {channel, start_s, duration_s}` makes one
+// channel's signals AND counts NaN on the cycles whose scheduled time t satisfies
+// start_s <= t < start_s + duration_s; the tunable inject_nan_channel (-1 = off) does the
+// same live, on every cycle, for the channel of that index (`lode set stage.inject_nan_channel 0`).
+// The noise generator advances exactly as without injection, so every other channel (and the
+// injected one once the window has passed) is bit for bit what it would have been.
+//
 // Threads: configure()/activate()/describe() on the loader thread; step()/write()/drive_safe()
 // on the RT thread (no allocation: every buffer is sized in configure()). drive_safe() may also
 // be called by the pipeline from the non-RT thread after the RT thread has stopped.
@@ -45,6 +52,11 @@ class SimBoard final : public Block {
   void drive_safe() noexcept override;
   void describe(Json& out) const override;
 
+  /// `lode set`: inject_nan_channel (index 0), an integer in [-1, channels - 1], -1 = off.
+  [[nodiscard]] std::vector<Tunable> tunables() const override;
+  [[nodiscard]] double tunable_value(std::size_t index) const noexcept override;
+  bool set_tunable(std::size_t index, double value, const char*& why) noexcept override;
+
   /// ADC saturations (samples clipped to the converter's range) since activate().
   [[nodiscard]] std::uint64_t saturation_count() const noexcept {
     return saturations_.load(std::memory_order_relaxed);
@@ -67,7 +79,10 @@ class SimBoard final : public Block {
 
   Status configure_sensors(ConfigureContext& ctx, Params& params);
   /// Fill every output from the plant's current state; noise only when `with_noise`.
-  StepStatus sample(std::int64_t time_ns, bool with_noise) noexcept;
+  /// `in_cycle`: a scheduled cycle (noise and fault injection apply), not activate()'s sample.
+  StepStatus sample(std::int64_t time_ns, bool in_cycle) noexcept;
+  /// Whether channel c is NaN-injected on the cycle scheduled at time_ns.
+  [[nodiscard]] bool injected(std::size_t c, std::int64_t time_ns) const noexcept;
   /// Standard normal deviate from the board's own generator (Box-Muller, deterministic on
   /// every standard library, unlike std::normal_distribution).
   double gaussian() noexcept;
@@ -97,6 +112,12 @@ class SimBoard final : public Block {
   std::vector<double> safe_command_;
   std::vector<double> command_limit_;  ///< empty: no clamp
   std::int64_t substeps_ = 1;
+
+  // Fault injection: the YAML window (channel -1 = none) and the live tunable.
+  std::int64_t inject_channel_ = -1;
+  std::int64_t inject_start_ns_ = 0;
+  std::int64_t inject_end_ns_ = 0;  ///< exclusive
+  std::atomic<std::int64_t> inject_live_channel_{-1};
 
   // Ports
   InputPort command_;

@@ -8,6 +8,7 @@
 #include <Eigen/Dense>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <filesystem>
 #include <random>
@@ -239,6 +240,175 @@ TEST(EkfBlock, UnknownJacobianChoiceAndMissingInputAreErrors) {
   const std::string d = h.diagnostics();
   EXPECT_NE(d.find("jacobian"), std::string::npos) << d;
   EXPECT_NE(d.find("required input 'input' is not connected"), std::string::npos) << d;
+}
+
+constexpr const char* kStatePlugin = "estimator.ekf";
+
+// --- estimator state (hot swap) and innovation, shared shape with the other ModelEstimator --
+
+std::string state_block(double initial_current) {
+  return "process: plant\nmeasurement: hall_distance\nq: [5.6e-8, 1.7e-8, 7.71e-3]\nprocess_noise: per_second\n"
+         "r: 1.2e-7\ninitial_state: [0.0265, 0.0, " + exact(initial_current) + "]\np0: [1e-6, 1e-4, 1e-2]\n";
+}
+
+struct Exported {
+  std::vector<double> values;
+  std::vector<double> covariance;
+};
+
+Exported export_of(lode::Block& block) {
+  const lode::StateLayout layout = block.state_layout();
+  Exported e;
+  e.values.assign(layout.size(), std::nan(""));
+  e.covariance.assign(layout.size() * layout.size(), std::nan(""));
+  block.export_state(e.values.data(), layout.covariance ? e.covariance.data() : nullptr);
+  return e;
+}
+
+bool cholesky_ok(const std::vector<double>& cov, std::size_t n) {
+  Eigen::MatrixXd p(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = 0; j < n; ++j) p(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = cov[i * n + j];
+  if (!p.allFinite() || p != p.transpose()) return false;
+  return Eigen::LLT<Eigen::MatrixXd>(p).info() == Eigen::Success;
+}
+
+struct StateRig {
+  explicit StateRig(const std::string& params) : h(kStatePlugin, params, 2000.0, kModels) {
+    h.feed("measurement", {{"gap", "m"}});
+    h.feed("input", {{"gap", "m"}, {"coil_voltage", "V"}});
+    ok = h.configure() && h.activate();
+    if (!ok) ADD_FAILURE() << h.diagnostics();
+  }
+  lode::StepStatus step(double y, double u) {
+    h.input("measurement")[0] = y;
+    h.input("input")[1] = u;
+    return h.step();
+  }
+  lode::testing::BlockHarness h;
+  bool ok = false;
+};
+
+TEST(ModelEstimatorState, LayoutIsTheProcessStateWithItsCovariance) {
+  if (!models_built()) GTEST_SKIP() << "plant.suspension / sensor.hall_gap not built";
+  StateRig rig(state_block(0.9));
+  ASSERT_TRUE(rig.ok);
+  const lode::StateLayout layout = rig.h.block().state_layout();
+  ASSERT_EQ(layout.size(), 3u);
+  EXPECT_EQ(layout.elements[0].name, "gap");
+  EXPECT_EQ(layout.elements[0].unit, "m");
+  EXPECT_EQ(layout.elements[1].name, "velocity");
+  EXPECT_EQ(layout.elements[2].unit, "A");
+  EXPECT_TRUE(layout.covariance);
+  EXPECT_EQ(rig.h.block().innovation_size(), 1u);
+  double nu = 0.0, s = 0.0;
+  EXPECT_FALSE(rig.h.block().innovation(&nu, &s)) << "no update before the first step";
+  const Exported e = export_of(rig.h.block());
+  EXPECT_EQ(e.values, (std::vector<double>{0.0265, 0.0, 0.9}));
+  EXPECT_EQ(e.covariance, (std::vector<double>{1e-6, 0, 0, 0, 1e-4, 0, 0, 0, 1e-2}));
+}
+
+TEST(ModelEstimatorState, ExportImportReproducesTheNextStepsBitForBit) {
+  if (!models_built()) GTEST_SKIP() << "plant.suspension / sensor.hall_gap not built";
+  const auto bm = make_benchmark(1100);
+  StateRig a(state_block(bm.truth[0][2]));
+  StateRig b(state_block(bm.truth[0][2]));
+  ASSERT_TRUE(a.ok && b.ok);
+  for (std::size_t k = 0; k < 1000; ++k) ASSERT_EQ(a.step(bm.y[k], bm.u[k]), lode::StepStatus::ok);
+  const Exported e = export_of(a.h.block());
+  EXPECT_TRUE(cholesky_ok(e.covariance, 3));
+  const std::uint8_t present[3] = {1, 1, 1};
+  b.h.block().import_state(e.values.data(), e.covariance.data(), present);
+  EXPECT_EQ(export_of(b.h.block()).values, e.values);
+  EXPECT_EQ(export_of(b.h.block()).covariance, e.covariance);
+  for (std::size_t k = 1000; k < 1100; ++k) {
+    ASSERT_EQ(a.step(bm.y[k], bm.u[k]), lode::StepStatus::ok);
+    ASSERT_EQ(b.step(bm.y[k], bm.u[k]), lode::StepStatus::ok) << b.h.block().fault_reason();
+    for (const char* port : {"state", "std", "innovation"}) {
+      for (std::size_t i = 0; i < a.h.output(port).size(); ++i) {
+        ASSERT_EQ(a.h.output(port)[i], b.h.output(port)[i]) << port << "[" << i << "] at k = " << k;
+      }
+    }
+    double nu_a = 0.0, s_a = 0.0, nu_b = 0.0, s_b = 0.0;
+    ASSERT_TRUE(a.h.block().innovation(&nu_a, &s_a));
+    ASSERT_TRUE(b.h.block().innovation(&nu_b, &s_b));
+    ASSERT_EQ(nu_a, nu_b);
+    ASSERT_EQ(s_a, s_b);
+  }
+}
+
+TEST(ModelEstimatorState, PresentMaskAndBadCovarianceLeaveAPositiveDefiniteP) {
+  if (!models_built()) GTEST_SKIP() << "plant.suspension / sensor.hall_gap not built";
+  StateRig rig(state_block(0.9));
+  ASSERT_TRUE(rig.ok);
+  const double values[3] = {0.025, 0.01, 1.1};
+  const double covariance[9] = {4e-8, 1e-7, 2e-6, 1e-7, 9e-6, 3e-5, 2e-6, 3e-5, 4e-3};
+  const std::uint8_t present[3] = {1, 0, 1};  // velocity absent
+  rig.h.block().import_state(values, covariance, present);
+  const Exported got = export_of(rig.h.block());
+  EXPECT_EQ(got.values, (std::vector<double>{0.025, 0.0, 1.1})) << "velocity keeps initial_state";
+  EXPECT_EQ(got.covariance, (std::vector<double>{4e-8, 0, 2e-6, 0, 1e-4, 0, 2e-6, 0, 4e-3}))
+      << "velocity keeps p0 with zero cross terms";
+  EXPECT_TRUE(cholesky_ok(got.covariance, 3));
+  ASSERT_EQ(rig.step(0.0251, 0.9), lode::StepStatus::ok) << rig.h.block().fault_reason();
+
+  // Indefinite and NaN: the diagonal is kept where usable, p0 elsewhere.
+  const double bad[9] = {-1.0, 1.0, 1.0, 1.0, 2e-4, std::nan(""), 1.0, 1.0, 3e-3};
+  const std::uint8_t all[3] = {1, 1, 1};
+  rig.h.block().import_state(values, bad, all);
+  const Exported repaired = export_of(rig.h.block());
+  EXPECT_EQ(repaired.covariance, (std::vector<double>{1e-6, 0, 0, 0, 2e-4, 0, 0, 0, 3e-3}));
+  EXPECT_TRUE(cholesky_ok(repaired.covariance, 3));
+  ASSERT_EQ(rig.step(0.0251, 0.9), lode::StepStatus::ok) << rig.h.block().fault_reason();
+}
+
+TEST(ModelEstimatorState, NisAveragesToOneWithTheTrueR) {
+  // Measurement noise drawn with the filter's own R (std 0.35 mm); the plant itself is
+  // deterministic and well inside the filter's Q, so nu^2 / S ~ chi-square(1), mean 1.
+  if (!models_built()) GTEST_SKIP() << "plant.suspension / sensor.hall_gap not built";
+  const auto bm = make_benchmark(20500);
+  StateRig rig(state_block(bm.truth[0][2]));
+  ASSERT_TRUE(rig.ok);
+  std::mt19937_64 rng(2024);
+  std::normal_distribution<double> noise(0.0, std::sqrt(1.2e-7));
+  double sum = 0.0;
+  int count = 0;
+  for (std::size_t k = 0; k < bm.y.size(); ++k) {
+    ASSERT_EQ(rig.step(bm.truth[k][0] + noise(rng), bm.u[k]), lode::StepStatus::ok) << rig.h.block().fault_reason();
+    double nu = 0.0, s = 0.0;
+    ASSERT_TRUE(rig.h.block().innovation(&nu, &s));
+    EXPECT_EQ(nu, rig.h.output("innovation")[0]);
+    if (k >= 500) {
+      sum += nu * nu / s;
+      ++count;
+    }
+  }
+  const double mean = sum / count;
+  std::printf("%s: mean NIS over %d steps = %.4f (m = 1)\n", kStatePlugin, count, mean);
+  EXPECT_GT(mean, 0.7);
+  EXPECT_LT(mean, 1.3);
+}
+
+TEST(ModelEstimatorState, ExportImportInnovationDoNotAllocate) {
+  if (!models_built()) GTEST_SKIP() << "plant.suspension / sensor.hall_gap not built";
+  if (!lode::testing::allocation_counting_available()) GTEST_SKIP() << "no allocation counting here";
+  const auto bm = make_benchmark(2000);
+  StateRig rig(state_block(bm.truth[0][2]));
+  ASSERT_TRUE(rig.ok);
+  auto measured = rig.h.input("measurement");
+  auto input = rig.h.input("input");
+  double values[3], covariance[9], nu = 0.0, s = 0.0;
+  const std::uint8_t present[3] = {1, 1, 1};
+  const auto before = lode::testing::allocation_count();
+  for (std::size_t k = 0; k < bm.y.size(); ++k) {
+    measured[0] = bm.y[k];
+    input[1] = bm.u[k];
+    ASSERT_EQ(rig.h.step(), lode::StepStatus::ok) << rig.h.block().fault_reason();
+    rig.h.block().export_state(values, covariance);
+    rig.h.block().import_state(values, covariance, present);
+    (void)rig.h.block().innovation(&nu, &s);
+  }
+  EXPECT_EQ(lode::testing::allocation_count() - before, 0u);
 }
 
 }  // namespace

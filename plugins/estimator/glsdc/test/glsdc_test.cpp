@@ -695,5 +695,193 @@ TEST(GlsdcRealTime, StepDoesNotAllocate) {
   EXPECT_EQ(allocations, 0);
 }
 
+// --- estimator state (hot swap) and invalid_measurement ---------------------------------
+
+struct Exported {
+  std::vector<double> values;
+  std::vector<double> covariance;
+};
+
+Exported export_of(Block& block) {
+  const StateLayout layout = block.state_layout();
+  Exported e;
+  e.values.assign(layout.size(), std::nan(""));
+  e.covariance.assign(layout.size() * layout.size(), std::nan(""));
+  block.export_state(e.values.data(), layout.covariance ? e.covariance.data() : nullptr);
+  return e;
+}
+
+bool positive_definite(const std::vector<double>& c) {
+  Eigen::Matrix3d p;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) p(i, j) = c[static_cast<std::size_t>(3 * i + j)];
+  return p.allFinite() && p == p.transpose() && Eigen::LLT<Eigen::Matrix3d>(p).info() == Eigen::Success;
+}
+
+/// Noisy measurements of a slow planar motion (1 mV channel noise, fixed seed).
+std::vector<std::vector<double>> noisy_path(Truth& truth, int n, unsigned seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> noise(0.0, 1e-3);
+  std::vector<std::vector<double>> out;
+  for (int k = 0; k < n; ++k) {
+    std::vector<double> y = truth.measure(1e-3 * std::sin(0.01 * k), 5e-4 * std::cos(0.013 * k), 2e-3 * std::sin(0.007 * k));
+    for (double& v : y) v += noise(rng);
+    out.push_back(std::move(y));
+  }
+  return out;
+}
+
+TEST(GlsdcState, LayoutAndExportBeforeTheFirstSolve) {
+  Rig rig(params_with_initial(0.001, -0.002, 0.003), hall_model("hall", "[1, 5]"));
+  ASSERT_TRUE(rig.ok());
+  const StateLayout layout = rig.block().state_layout();
+  ASSERT_EQ(layout.size(), 3u);
+  EXPECT_EQ(layout.elements[0].name, "x");
+  EXPECT_EQ(layout.elements[0].unit, "m");
+  EXPECT_EQ(layout.elements[1].name, "y");
+  EXPECT_EQ(layout.elements[1].unit, "m");
+  EXPECT_EQ(layout.elements[2].name, "theta_z");
+  EXPECT_EQ(layout.elements[2].unit, "rad");
+  EXPECT_TRUE(layout.covariance);
+  EXPECT_EQ(rig.block().innovation_size(), 0u) << "a batch solver has no innovation";
+  double nu = 0.0, s = 0.0;
+  EXPECT_FALSE(rig.block().innovation(&nu, &s));
+  // Before any solve: the initial pose and "unknown" (1 m^2, 1 m^2, 1 rad^2), positive definite.
+  const Exported e = export_of(rig.block());
+  EXPECT_EQ(e.values, (std::vector<double>{0.001, -0.002, 0.003}));
+  EXPECT_EQ(e.covariance, (std::vector<double>{1, 0, 0, 0, 1, 0, 0, 0, 1}));
+}
+
+TEST(GlsdcState, ExportIsTheWarmStartAndThePublishedR) {
+  Truth truth("[1, 5]");
+  ASSERT_TRUE(truth.ok());
+  Rig rig("model: hall", hall_model("hall", "[1, 5]"));
+  ASSERT_TRUE(rig.ok());
+  for (const auto& y : noisy_path(truth, 20, 5)) ASSERT_EQ(rig.step(y), StepStatus::ok);
+  const Exported e = export_of(rig.block());
+  for (int a = 0; a < 3; ++a) {
+    EXPECT_EQ(e.values[static_cast<std::size_t>(a)], rig.pose(a));
+    for (int b = 0; b < 3; ++b) {
+      // The published R symmetrised (it is symmetric only to rounding).
+      EXPECT_EQ(e.covariance[static_cast<std::size_t>(3 * a + b)], 0.5 * (rig.covariance(a, b) + rig.covariance(b, a)));
+      EXPECT_NEAR(e.covariance[static_cast<std::size_t>(3 * a + b)], rig.covariance(a, b),
+                  1e-12 * std::sqrt(rig.covariance(a, a) * rig.covariance(b, b)));
+    }
+  }
+  EXPECT_TRUE(positive_definite(e.covariance));
+
+  // 2dof: theta is not estimated; its row and column export as (1 rad)^2 on the diagonal.
+  Rig two(params_with_initial(0.0, 0.0, 0.002, "mode: 2dof\n"), hall_model("hall", "[1, 5]"));
+  ASSERT_TRUE(two.ok());
+  for (int k = 0; k < 5; ++k) ASSERT_EQ(two.step(truth.measure(1e-4, 2e-4, 0.002)), StepStatus::ok);
+  const Exported e2 = export_of(two.block());
+  EXPECT_EQ(two.covariance(2, 2), 0.0) << "the published R keeps theta's row and column 0";
+  EXPECT_EQ(e2.covariance[8], Glsdc::kUnknownVariance);
+  EXPECT_EQ(e2.covariance[2], 0.0);
+  EXPECT_EQ(e2.covariance[6], 0.0);
+  EXPECT_EQ(e2.covariance[0], two.covariance(0, 0));
+  EXPECT_TRUE(positive_definite(e2.covariance));
+}
+
+TEST(GlsdcState, ExportImportReproducesTheNextStepsBitForBit) {
+  Truth truth("[1, 5]", true);
+  ASSERT_TRUE(truth.ok());
+  for (const char* extra : {"", "iterations: 3\n"}) {
+    SCOPED_TRACE(extra);
+    Rig a(std::string("model: hall\n") + extra, hall_model("hall", "[1, 5]", true), true);
+    Rig b(std::string("model: hall\n") + extra, hall_model("hall", "[1, 5]", true), true);
+    ASSERT_TRUE(a.ok() && b.ok());
+    const auto path = noisy_path(truth, 120, 9);
+    for (int k = 0; k < 100; ++k) ASSERT_EQ(a.step(path[static_cast<std::size_t>(k)]), StepStatus::ok);
+    const Exported e = export_of(a.block());
+    const std::uint8_t present[3] = {1, 1, 1};
+    b.block().import_state(e.values.data(), e.covariance.data(), present);
+    EXPECT_EQ(export_of(b.block()).values, e.values);
+    for (int k = 100; k < 120; ++k) {
+      ASSERT_EQ(a.step(path[static_cast<std::size_t>(k)]), StepStatus::ok);
+      ASSERT_EQ(b.step(path[static_cast<std::size_t>(k)]), StepStatus::ok);
+      for (int i = 0; i < 3; ++i) {
+        ASSERT_EQ(a.pose(i), b.pose(i)) << "k = " << k;
+        for (int j = 0; j < 3; ++j) ASSERT_EQ(a.covariance(i, j), b.covariance(i, j)) << "k = " << k;
+      }
+      ASSERT_EQ(a.cost(), b.cost());
+    }
+  }
+}
+
+TEST(GlsdcState, PresentMaskKeepsTheInitialPose) {
+  Rig rig(params_with_initial(0.001, -0.002, 0.003), hall_model("hall", "[1, 5]"));
+  ASSERT_TRUE(rig.ok());
+  const double values[3] = {0.004, std::nan(""), 0.006};
+  const std::uint8_t present[3] = {1, 1, 0};
+  rig.block().import_state(values, nullptr, present);
+  EXPECT_EQ(export_of(rig.block()).values, (std::vector<double>{0.004, -0.002, 0.003}))
+      << "absent or non-finite: the configured initial pose";
+  EXPECT_TRUE(positive_definite(export_of(rig.block()).covariance));
+}
+
+TEST(GlsdcInvalid, PropagateMakesTheCycleNaNAndKeepsTheWarmStart) {
+  Truth truth("[1, 5]");
+  ASSERT_TRUE(truth.ok());
+  Rig rig("model: hall\ninvalid_measurement: propagate", hall_model("hall", "[1, 5]"));
+  Rig reference("model: hall", hall_model("hall", "[1, 5]"));
+  ASSERT_TRUE(rig.ok() && reference.ok());
+  const auto path = noisy_path(truth, 40, 13);
+  for (int k = 0; k < 30; ++k) {
+    ASSERT_EQ(rig.step(path[static_cast<std::size_t>(k)]), StepStatus::ok);
+    ASSERT_EQ(reference.step(path[static_cast<std::size_t>(k)]), StepStatus::ok);
+  }
+  const Exported before = export_of(rig.block());
+  std::vector<double> bad = path[30];
+  bad[1] = std::nan("");
+  ASSERT_EQ(rig.step(bad), StepStatus::ok);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_TRUE(std::isnan(rig.pose(i))) << i;
+    for (int j = 0; j < 3; ++j) EXPECT_TRUE(std::isnan(rig.covariance(i, j)));
+  }
+  EXPECT_TRUE(std::isnan(rig.cost()));
+  const Exported during = export_of(rig.block());
+  EXPECT_EQ(during.values, before.values) << "the warm start is kept";
+  EXPECT_EQ(during.covariance, before.covariance);
+  // The next valid cycle continues exactly as if the bad one had not happened.
+  for (int k = 31; k < 40; ++k) {
+    ASSERT_EQ(rig.step(path[static_cast<std::size_t>(k)]), StepStatus::ok);
+    ASSERT_EQ(reference.step(path[static_cast<std::size_t>(k)]), StepStatus::ok);
+    for (int i = 0; i < 3; ++i) ASSERT_EQ(rig.pose(i), reference.pose(i)) << "k = " << k;
+  }
+  // The default is unchanged: fault.
+  bad[1] = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(reference.step(bad), StepStatus::fault);
+  EXPECT_STREQ(reference.block().fault_reason(), "non-finite measurement");
+
+  // 2dof: a NaN theta input is propagated the same way.
+  Rig two("model: hall\nmode: 2dof\ninvalid_measurement: propagate", hall_model("hall", "[1, 5]"), false, true);
+  ASSERT_TRUE(two.ok());
+  two.set_theta(std::nan(""));
+  ASSERT_EQ(two.step(truth.measure(0.0, 0.0, 0.0)), StepStatus::ok);
+  EXPECT_TRUE(std::isnan(two.pose(0)));
+}
+
+TEST(GlsdcState, ExportImportDoNotAllocate) {
+  Truth truth("[1, 5]");
+  ASSERT_TRUE(truth.ok());
+  Rig rig("model: hall", hall_model("hall", "[1, 5]"));
+  ASSERT_TRUE(rig.ok());
+  const auto path = noisy_path(truth, 100, 17);
+  double values[3], covariance[9], nu = 0.0, s = 0.0;
+  const std::uint8_t present[3] = {1, 1, 1};
+  auto in = rig.harness().input("measurement");
+  const long before = static_cast<long>(lode::testing::allocation_count());
+  for (int k = 0; k < 2000; ++k) {
+    const std::vector<double>& y = path[static_cast<std::size_t>(k % 100)];
+    std::copy(y.begin(), y.end(), in.begin());
+    rig.harness().step();
+    rig.block().export_state(values, covariance);
+    rig.block().import_state(values, covariance, present);
+    (void)rig.block().innovation(&nu, &s);
+  }
+  EXPECT_EQ(static_cast<long>(lode::testing::allocation_count()) - before, 0);
+}
+
 }  // namespace
 }  // namespace lode::plugins

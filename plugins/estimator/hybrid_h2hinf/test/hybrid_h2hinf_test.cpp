@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <numbers>
 #include <random>
@@ -581,6 +582,308 @@ TEST(HybridTunables, SetTunableAllocatesNothing) {
   }
   EXPECT_EQ(lode::testing::allocation_count() - before, 0u);
   EXPECT_EQ(accepted, 1000);
+}
+
+// ---- Estimator state (hot swap), innovation, invalid_measurement ----
+
+const Elements kPose3 = {{"x", "m"}, {"y", "m"}, {"theta_z", "rad"}};
+
+struct Exported {
+  std::vector<double> values;
+  std::vector<double> covariance;
+};
+
+Exported export_of(Block& block) {
+  const StateLayout layout = block.state_layout();
+  Exported e;
+  e.values.assign(layout.size(), NAN);
+  e.covariance.assign(layout.size() * layout.size(), NAN);
+  block.export_state(e.values.data(), layout.covariance ? e.covariance.data() : nullptr);
+  return e;
+}
+
+bool cholesky_ok(const std::vector<double>& cov, std::size_t n) {
+  Eigen::MatrixXd p(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = 0; j < n; ++j) p(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = cov[i * n + j];
+  if (!p.allFinite() || p != p.transpose()) return false;
+  return Eigen::LLT<Eigen::MatrixXd>(p).info() == Eigen::Success;
+}
+
+/// Simulated truth of one constant-acceleration axis (eq. 20-23): jerk w ~ N(0, q), measured
+/// with v ~ N(0, r). Fixed seed.
+class AxisTruth {
+ public:
+  AxisTruth(double q, double r, std::uint64_t seed) : q_(q), r_(r), rng_(seed) {
+    const AxisModel m = AxisModel::make(kT);
+    phi_ = m.phi;
+    upsilon_ = m.upsilon;
+  }
+  double measure() { return x_(0) + std::sqrt(r_) * normal_(rng_); }
+  void advance() { x_ = (phi_ * x_ + upsilon_ * (std::sqrt(q_) * normal_(rng_))).eval(); }
+
+ private:
+  double q_, r_;
+  std::mt19937_64 rng_;
+  std::normal_distribution<double> normal_{0.0, 1.0};
+  Matrix3 phi_;
+  Vector3 upsilon_;
+  Vector3 x_ = Vector3(2e-3, 0.0, 0.0);
+};
+
+TEST(HybridState, LayoutMatchesTheKalmanOneToOneAndStateCrossesBothWays) {
+  const std::string q_r = "q: [1.0e3, 1.0e3, 1.0e5]\nr: 1.0e-6\n";
+  BlockHarness hybrid_h("estimator.hybrid_h2hinf", q_r + "hinf_theta: 5.0e5\nd: 0.3\n", kRateHz);
+  BlockHarness kalman_h("estimator.kalman", q_r + "output: filtered\n", kRateHz);  // as the hybrid's default
+  for (BlockHarness* h : {&hybrid_h, &kalman_h}) {
+    h->feed("measurement", kPose3);
+    ASSERT_TRUE(h->configure()) << h->diagnostics();
+    ASSERT_TRUE(h->activate());
+  }
+  const StateLayout from_hybrid = hybrid_h.block().state_layout();
+  const StateLayout from_kalman = kalman_h.block().state_layout();
+  ASSERT_EQ(from_hybrid.size(), 9u);
+  ASSERT_EQ(from_hybrid.size(), from_kalman.size());
+  for (std::size_t i = 0; i < from_hybrid.size(); ++i) {
+    EXPECT_EQ(from_hybrid.elements[i].name, from_kalman.elements[i].name) << i;
+    EXPECT_EQ(from_hybrid.elements[i].unit, from_kalman.elements[i].unit) << i;
+  }
+  EXPECT_EQ(from_hybrid.elements[2].name, "x_ddot");
+  EXPECT_EQ(from_hybrid.elements[2].unit, "m/s^2");
+  EXPECT_TRUE(from_hybrid.covariance);
+  EXPECT_EQ(hybrid_h.block().innovation_size(), kalman_h.block().innovation_size());
+
+  auto run = [](BlockHarness& h, int from, int to) {
+    auto y = h.input("measurement");
+    for (int k = from; k < to; ++k) {
+      for (std::size_t i = 0; i < 3; ++i) y[i] = 1e-4 * std::sin(0.02 * k + static_cast<double>(i));
+      ASSERT_EQ(h.step(), StepStatus::ok);
+    }
+  };
+  const std::vector<std::uint8_t> present(9, 1);
+  // kalman -> hybrid: the state arrives unchanged.
+  run(kalman_h, 0, 400);
+  const Exported k_state = export_of(kalman_h.block());
+  hybrid_h.block().import_state(k_state.values.data(), k_state.covariance.data(), present.data());
+  EXPECT_EQ(export_of(hybrid_h.block()).values, k_state.values);
+  // hybrid -> kalman: the state and the hybrid's steady covariance arrive unchanged.
+  run(hybrid_h, 400, 800);
+  const Exported h_state = export_of(hybrid_h.block());
+  EXPECT_TRUE(cholesky_ok(h_state.covariance, 9));
+  kalman_h.block().import_state(h_state.values.data(), h_state.covariance.data(), present.data());
+  const Exported k_after = export_of(kalman_h.block());
+  EXPECT_EQ(k_after.values, h_state.values);
+  EXPECT_EQ(k_after.covariance, h_state.covariance);
+  // Both now hold the same prior x^-_k: the first innovation after the swap is the same number.
+  run(kalman_h, 800, 801);
+  run(hybrid_h, 800, 801);
+  for (std::size_t i = 0; i < 3; ++i) EXPECT_EQ(kalman_h.output("innovation")[i], hybrid_h.output("innovation")[i]) << i;
+  // Then each follows its own gains; both keep tracking the 100 um sine (no swap transient).
+  run(kalman_h, 801, 900);
+  run(hybrid_h, 801, 900);
+  for (std::size_t i = 0; i < 3; ++i) {
+    const double y = 1e-4 * std::sin(0.02 * 899 + static_cast<double>(i));
+    EXPECT_NEAR(kalman_h.output("pose")[i], y, 1e-5) << i;
+    EXPECT_NEAR(hybrid_h.output("pose")[i], y, 1e-5) << i;
+  }
+}
+
+TEST(HybridState, SteadyCovarianceSolvesTheLyapunovEquationAndIsTheDarePriorAtDOne) {
+  const AxisModel model = AxisModel::make(kT);
+  const double q = 1e3;
+  const hybrid::KalmanDesign kalman = hybrid::design_kalman(model, q, kR);
+  ASSERT_TRUE(kalman.ok) << kalman.error;
+  Matrix3 p;
+  ASSERT_TRUE(hybrid::blended_prior_covariance(model, kalman.gain, q, kR, p));
+  for (int a = 0; a < 3; ++a) {
+    for (int b = 0; b < 3; ++b) {
+      EXPECT_NEAR(p(a, b), kalman.prior_cov(a, b), 1e-8 * std::sqrt(kalman.prior_cov(a, a) * kalman.prior_cov(b, b)))
+          << a << "," << b;
+    }
+  }
+  // d = 0.3 on the block: P = A P A' + W with A = Phi (I - K H), W = Phi K r K' Phi' + Upsilon q Upsilon'.
+  Rig rig("q: 1.0e3\nr: 1.0e-6\nhinf_theta: 5.0e5\nd: 0.3");
+  ASSERT_TRUE(rig.status) << rig.h.diagnostics();
+  const Vector3 k = hybrid::blend(0.3, rig.block().kalman_gain(0), rig.block().hinf_gain(0));
+  const Matrix3& s = rig.block().steady_covariance(0);
+  Matrix3 i_kh = Matrix3::Identity();
+  i_kh.col(0) -= k;
+  const Matrix3 a = model.phi * i_kh;
+  const Vector3 phi_k = model.phi * k;
+  const Matrix3 w = phi_k * kR * phi_k.transpose() + model.upsilon * q * model.upsilon.transpose();
+  const Matrix3 residual = s - a * s * a.transpose() - w;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) EXPECT_LE(std::abs(residual(i, j)), 1e-12 * std::sqrt(s(i, i) * s(j, j))) << i << "," << j;
+  }
+  EXPECT_EQ(Eigen::LLT<Matrix3>(s).info(), Eigen::Success);
+  // The blend is suboptimal: its error covariance is larger than the Kalman filter's.
+  EXPECT_GT(s(0, 0), kalman.prior_cov(0, 0));
+  std::printf("hybrid d = 0.3: steady P^-(0,0) = %.4g m^2 vs Kalman %.4g m^2\n", s(0, 0), kalman.prior_cov(0, 0));
+
+  // A new d at run time moves the exported covariance with it (at the next step).
+  const double before = export_of(rig.h.block()).covariance[0];
+  const char* why = "";
+  ASSERT_TRUE(rig.h.block().set_tunable(0, 1.0, why)) << why;
+  ASSERT_EQ(rig.step(0.0), StepStatus::ok);
+  const double after = export_of(rig.h.block()).covariance[0];
+  EXPECT_NE(after, before);
+  EXPECT_NEAR(after, kalman.prior_cov(0, 0), 1e-8 * kalman.prior_cov(0, 0));
+}
+
+TEST(HybridState, ExportImportReproducesTheNextStepsBitForBit) {
+  for (const char* extra : {"d: 0.3\noutput: filtered\n", "d: 0.8\noutput: predicted\n", "d: 1.0\n"}) {
+    SCOPED_TRACE(extra);
+    const std::string params = std::string(kPaperParams) + extra;
+    BlockHarness a("estimator.hybrid_h2hinf", params, kRateHz);
+    BlockHarness b("estimator.hybrid_h2hinf", params, kRateHz);
+    for (BlockHarness* h : {&a, &b}) {
+      h->feed("measurement", kSixAxes);
+      ASSERT_TRUE(h->configure()) << h->diagnostics();
+      ASSERT_TRUE(h->activate());
+    }
+    const std::vector<double> y = noisy_signal(900, 3);
+    auto feed = [&](BlockHarness& h, int k) {
+      auto in = h.input("measurement");
+      for (std::size_t i = 0; i < 6; ++i) in[i] = y[static_cast<std::size_t>(k)] * (1.0 + 0.1 * static_cast<double>(i));
+    };
+    for (int k = 0; k < 800; ++k) {
+      feed(a, k);
+      ASSERT_EQ(a.step(), StepStatus::ok);
+    }
+    const Exported e = export_of(a.block());
+    const std::vector<std::uint8_t> present(18, 1);
+    b.block().import_state(e.values.data(), e.covariance.data(), present.data());
+    EXPECT_EQ(export_of(b.block()).values, e.values);
+    EXPECT_EQ(export_of(b.block()).covariance, e.covariance);
+    for (int k = 800; k < 900; ++k) {
+      feed(a, k);
+      feed(b, k);
+      ASSERT_EQ(a.step(), StepStatus::ok);
+      ASSERT_EQ(b.step(), StepStatus::ok);
+      for (const char* port : {"pose", "velocity", "acceleration", "innovation"}) {
+        for (std::size_t i = 0; i < 6; ++i) ASSERT_EQ(a.output(port)[i], b.output(port)[i]) << port << i << " k " << k;
+      }
+    }
+  }
+}
+
+TEST(HybridState, PresentMaskKeepsInitialValuesAndTheCovarianceStaysPositiveDefinite) {
+  Rig a("q: 1.0e3\nr: 1.0e-6\nhinf_theta: 5.0e5\nd: 0.5", kPose3);
+  Rig b("q: 1.0e3\nr: 1.0e-6\nhinf_theta: 5.0e5\nd: 0.5", kPose3);
+  ASSERT_TRUE(a.status) << a.h.diagnostics();
+  ASSERT_TRUE(b.status) << b.h.diagnostics();
+  for (int k = 0; k < 300; ++k) ASSERT_EQ(a.step(1e-4 * std::sin(0.03 * k)), StepStatus::ok);
+  const Exported e = export_of(a.h.block());
+  std::vector<std::uint8_t> present(9, 1);
+  present[1] = 0;  // x_dot
+  present[6] = present[7] = present[8] = 0;  // theta_z, all of it
+  std::vector<double> values = e.values;
+  values[4] = NAN;  // a non-finite value counts as absent
+  b.h.block().import_state(values.data(), nullptr, present.data());
+  const Exported got = export_of(b.h.block());
+  for (std::size_t i = 0; i < 9; ++i) {
+    const bool given = present[i] != 0 && i != 4;
+    EXPECT_EQ(got.values[i], given ? e.values[i] : 0.0) << i;
+  }
+  EXPECT_EQ(got.covariance, e.covariance) << "the covariance is the steady one, whatever is imported";
+  EXPECT_TRUE(cholesky_ok(got.covariance, 9));
+  // theta_z's position was absent: the next measurement places it (initialize_from_first_measurement).
+  b.input[0] = b.input[1] = 0.0;
+  b.input[2] = 5e-3;
+  ASSERT_EQ(b.h.step(), StepStatus::ok);
+  EXPECT_EQ(b.h.output("innovation")[2], 0.0);
+  EXPECT_EQ(b.h.output("pose")[2], 5e-3);
+}
+
+TEST(HybridState, NisAveragesToTheNumberOfChannelsForEveryD) {
+  // The steady covariance is the true prior error covariance of the blended filter on its
+  // design model, so nu^2 / S is chi-square(1) per axis for any d, not only d = 1.
+  const double q[3] = {1e3, 1e3, 1e5};
+  for (double d : {1.0, 0.3, 0.0}) {
+    char params[160];
+    std::snprintf(params, sizeof params, "q: [1.0e3, 1.0e3, 1.0e5]\nr: 1.0e-6\nhinf_theta: 5.0e5\nd: %g\n", d);
+    Rig rig(params, kPose3);
+    ASSERT_TRUE(rig.status) << rig.h.diagnostics();
+    std::vector<AxisTruth> truth;
+    for (std::size_t i = 0; i < 3; ++i) truth.emplace_back(q[i], kR, 100 + i);
+    double sum = 0.0;
+    int count = 0;
+    for (int k = 0; k < 20200; ++k) {
+      for (std::size_t i = 0; i < 3; ++i) rig.input[i] = truth[i].measure();
+      ASSERT_EQ(rig.h.step(), StepStatus::ok);
+      double nu[3], s[3];
+      ASSERT_TRUE(rig.h.block().innovation(nu, s));
+      if (k >= 200) {
+        for (std::size_t i = 0; i < 3; ++i) sum += nu[i] * nu[i] / s[i];
+        ++count;
+      }
+      for (auto& t : truth) t.advance();
+    }
+    const double mean = sum / count;
+    std::printf("hybrid d = %.1f: mean NIS over %d steps = %.4f (m = 3)\n", d, count, mean);
+    EXPECT_GT(mean, 0.7 * 3) << "d = " << d;
+    EXPECT_LT(mean, 1.3 * 3) << "d = " << d;
+  }
+}
+
+TEST(HybridInvalid, PredictCoastsTheAxisWithANaNAndFaultModeIsUnchanged) {
+  Rig coast(std::string(kPaperParams) + "invalid_measurement: predict\n", kSixAxes);
+  Rig reference(kPaperParams, kSixAxes);
+  ASSERT_TRUE(coast.status) << coast.h.diagnostics();
+  ASSERT_TRUE(reference.status) << reference.h.diagnostics();
+  for (int k = 0; k < 200; ++k) {
+    ASSERT_EQ(coast.step(1e-5 * std::sin(0.05 * k)), StepStatus::ok);
+    ASSERT_EQ(reference.step(1e-5 * std::sin(0.05 * k)), StepStatus::ok);
+  }
+  const Exported before = export_of(coast.h.block());
+  for (std::size_t i = 0; i < 6; ++i) coast.input[i] = reference.input[i] = 2e-6;
+  coast.input[3] = std::nan("");
+  ASSERT_EQ(coast.h.step(), StepStatus::ok) << coast.h.block().fault_reason();
+  ASSERT_EQ(reference.h.step(), StepStatus::ok);
+  double nu[6], s[6];
+  EXPECT_FALSE(coast.h.block().innovation(nu, s));
+  for (const char* port : {"pose", "velocity", "acceleration", "innovation"}) {
+    for (std::size_t i = 0; i < 6; ++i) {
+      EXPECT_TRUE(std::isfinite(coast.h.output(port)[i])) << port << i;
+      if (i != 3) {
+        EXPECT_EQ(coast.h.output(port)[i], reference.h.output(port)[i]) << port << i;
+      }
+    }
+  }
+  // Axis 3 (z): x^+ = x^- (output: filtered), x^-_{k+1} = Phi x^-_k.
+  const Exported after = export_of(coast.h.block());
+  EXPECT_EQ(coast.h.output("pose")[3], before.values[9]);
+  const Vector3 x(before.values[9], before.values[10], before.values[11]);
+  const Vector3 expected = AxisModel::make(kT).phi * x;
+  for (int a = 0; a < 3; ++a) EXPECT_EQ(after.values[9 + static_cast<std::size_t>(a)], expected(a));
+  ASSERT_EQ(coast.step(2e-6), StepStatus::ok);
+  EXPECT_TRUE(coast.h.block().innovation(nu, s));
+
+  // Fault mode: the fault leaves every axis exactly as it was.
+  const Exported ref_before = export_of(reference.h.block());
+  reference.input[5] = std::nan("");
+  EXPECT_EQ(reference.h.step(), StepStatus::fault);
+  EXPECT_EQ(export_of(reference.h.block()).values, ref_before.values);
+  EXPECT_FALSE(reference.h.block().innovation(nu, s));
+}
+
+TEST(HybridState, ExportImportInnovationAllocateNothing) {
+  Rig rig(kPaperParams, kSixAxes);
+  ASSERT_TRUE(rig.status) << rig.h.diagnostics();
+  const StateLayout layout = rig.h.block().state_layout();
+  std::vector<double> values(layout.size()), covariance(layout.size() * layout.size());
+  const std::vector<std::uint8_t> present(layout.size(), 1);
+  double nu[6], s[6];
+  const char* why = "";
+  const auto before = lode::testing::allocation_count();
+  for (int k = 0; k < 2000; ++k) {
+    if (k == 1000) (void)rig.h.block().set_tunable(0, 0.8, why);  // recomputes the steady covariance
+    rig.step(1e-6 * std::sin(k * 0.1));
+    rig.h.block().export_state(values.data(), covariance.data());
+    rig.h.block().import_state(values.data(), covariance.data(), present.data());
+    (void)rig.h.block().innovation(nu, s);
+  }
+  EXPECT_EQ(lode::testing::allocation_count() - before, 0u);
 }
 
 }  // namespace

@@ -5,11 +5,16 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+
 #include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <new>
+#include <random>
 #include <numbers>
 #include <string>
 #include <vector>
@@ -470,6 +475,361 @@ TEST(EstimatorKalman, StepDoesNotAllocate) {
     for (int k = 0; k < 10000; ++k) {
       y[0] = 1e-4 * std::sin(0.01 * k);
       if (h.step() != StepStatus::ok) FAIL() << h.block().fault_reason();
+    }
+    EXPECT_EQ(static_cast<long>(lode::testing::allocation_count()) - before, 0) << motion;
+  }
+}
+
+// --- estimator state (hot swap), innovation, invalid_measurement ---------------------------
+
+/// Simulated truth of one constant-acceleration axis (eq. 4.35): x_{k+1} = Phi x_k + Upsilon w_k,
+/// w ~ N(0, q) (jerk), measured as y_k = x_k(0) + v_k, v ~ N(0, r). Fixed seed.
+class AxisTruth {
+ public:
+  AxisTruth(double q, double r, std::uint64_t seed) : q_(q), r_(r), rng_(seed) {
+    const double t = kPeriodS;
+    phi_ << 1.0, t, 0.5 * t * t, 0.0, 1.0, t, 0.0, 0.0, 1.0;
+    upsilon_ << t * t * t / 6.0, 0.5 * t * t, t;
+  }
+  double measure() { return x_(0) + std::sqrt(r_) * normal_(rng_); }
+  void advance() { x_ = (phi_ * x_ + upsilon_ * (std::sqrt(q_) * normal_(rng_))).eval(); }
+
+ private:
+  double q_, r_;
+  std::mt19937_64 rng_;
+  std::normal_distribution<double> normal_{0.0, 1.0};
+  Eigen::Matrix3d phi_;
+  Eigen::Vector3d upsilon_;
+  Eigen::Vector3d x_ = Eigen::Vector3d(1e-3, 0.0, 0.0);
+};
+
+struct Exported {
+  std::vector<double> values;
+  std::vector<double> covariance;
+};
+
+Exported export_of(Block& block) {
+  const StateLayout layout = block.state_layout();
+  Exported e;
+  e.values.assign(layout.size(), NAN);
+  e.covariance.assign(layout.size() * layout.size(), NAN);
+  block.export_state(e.values.data(), layout.covariance ? e.covariance.data() : nullptr);
+  return e;
+}
+
+bool cholesky_ok(const std::vector<double>& cov, std::size_t n) {
+  Eigen::MatrixXd p(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = 0; j < n; ++j) p(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = cov[i * n + j];
+  if (!p.allFinite() || p != p.transpose()) return false;
+  return Eigen::LLT<Eigen::MatrixXd>(p).info() == Eigen::Success;
+}
+
+/// Run `h` on a noisy sine for `steps` cycles (3 axes, y(k) also used later by the caller).
+double sine_measurement(int k, std::size_t axis) { return 1e-4 * std::sin(0.01 * k + static_cast<double>(axis)) + 1e-7 * std::cos(1.3 * k); }
+
+TEST(EstimatorKalmanState, LayoutNamesUnitsAndCovariance) {
+  BlockHarness ca("estimator.kalman", "q: [100, 100, 1e5]\nr: [2.2e-10, 2.2e-10, 9.6e-9]\n", kRateHz);
+  ca.feed("measurement", kPose);
+  ASSERT_TRUE(ca.configure()) << ca.diagnostics();
+  const StateLayout layout = ca.block().state_layout();
+  const Elements expected{{"x", "m"},         {"x_dot", "m/s"},         {"x_ddot", "m/s^2"},
+                          {"y", "m"},         {"y_dot", "m/s"},         {"y_ddot", "m/s^2"},
+                          {"theta_z", "rad"}, {"theta_z_dot", "rad/s"}, {"theta_z_ddot", "rad/s^2"}};
+  ASSERT_EQ(layout.size(), expected.size());
+  for (std::size_t i = 0; i < expected.size(); ++i) {
+    EXPECT_EQ(layout.elements[i].name, expected[i].name);
+    EXPECT_EQ(layout.elements[i].unit, expected[i].unit);
+  }
+  EXPECT_TRUE(layout.covariance);
+  EXPECT_EQ(ca.block().innovation_size(), 3u);
+
+  BlockHarness cv("estimator.kalman", "motion: constant_velocity\nq: 10\nr: 1e-10\n", kRateHz);
+  cv.feed("measurement", {{"z", "m"}});
+  ASSERT_TRUE(cv.configure()) << cv.diagnostics();
+  const StateLayout cv_layout = cv.block().state_layout();
+  ASSERT_EQ(cv_layout.size(), 2u);
+  EXPECT_EQ(cv_layout.elements[1].name, "z_dot");
+  EXPECT_EQ(cv_layout.elements[1].unit, "m/s");
+
+  // Before any step: x^-_0 = 0 and P^-_0 = p0 I (block diagonal, cross-axis zero).
+  ASSERT_TRUE(ca.activate());
+  const Exported e = export_of(ca.block());
+  for (std::size_t i = 0; i < 9; ++i) {
+    EXPECT_EQ(e.values[i], 0.0);
+    for (std::size_t j = 0; j < 9; ++j) EXPECT_EQ(e.covariance[i * 9 + j], i == j ? 1e-8 : 0.0) << i << "," << j;
+  }
+  double residual[3], variance[3];
+  EXPECT_FALSE(ca.block().innovation(residual, variance)) << "no update before the first step";
+}
+
+/// Export from a running instance, import into a fresh one, then both must produce the same
+/// outputs bit for bit on the same inputs.
+void check_export_import_bit_for_bit(const std::string& params, bool covariance_input) {
+  SCOPED_TRACE(params);
+  Elements cov_elements;
+  for (int i = 0; i < 9; ++i) cov_elements.push_back({"c" + std::to_string(i), "m^2"});
+  auto make = [&](BlockHarness& h) {
+    h.feed("measurement", kPose);
+    if (covariance_input) h.feed("covariance", cov_elements);
+    ASSERT_TRUE(h.configure()) << h.diagnostics();
+    ASSERT_TRUE(h.activate());
+  };
+  BlockHarness a("estimator.kalman", params, kRateHz);
+  BlockHarness b("estimator.kalman", params, kRateHz);
+  make(a);
+  make(b);
+  auto feed = [&](BlockHarness& h, int k) {
+    auto y = h.input("measurement");
+    for (std::size_t i = 0; i < 3; ++i) y[i] = sine_measurement(k, i);
+    if (covariance_input) {
+      auto c = h.input("covariance");
+      for (std::size_t i = 0; i < 3; ++i) c[i * 3 + i] = 1e-10 * (1.0 + 0.5 * std::sin(0.003 * k + i));
+    }
+  };
+  for (int k = 0; k < 700; ++k) {
+    feed(a, k);
+    ASSERT_EQ(a.step(), StepStatus::ok);
+  }
+  const StateLayout layout = a.block().state_layout();
+  const Exported e = export_of(a.block());
+  const std::vector<std::uint8_t> present(layout.size(), 1);
+  b.block().import_state(e.values.data(), e.covariance.data(), present.data());
+  const Exported e_b = export_of(b.block());
+  EXPECT_EQ(e_b.values, e.values);
+  EXPECT_EQ(e_b.covariance, e.covariance);
+  for (int k = 700; k < 760; ++k) {
+    feed(a, k);
+    feed(b, k);
+    ASSERT_EQ(a.step(), StepStatus::ok);
+    ASSERT_EQ(b.step(), StepStatus::ok);
+    for (const char* port : {"pose", "velocity", "acceleration", "innovation"}) {
+      if (std::string(port) == "acceleration" && params.find("constant_velocity") != std::string::npos) continue;
+      for (std::size_t i = 0; i < 3; ++i) {
+        ASSERT_EQ(a.output(port)[i], b.output(port)[i]) << port << "[" << i << "] at k = " << k;
+      }
+    }
+  }
+}
+
+TEST(EstimatorKalmanState, ExportImportReproducesTheNextStepsBitForBit) {
+  check_export_import_bit_for_bit("q: [100, 100, 1e5]\nr: [2.2e-10, 2.2e-10, 9.6e-9]\n", false);
+  check_export_import_bit_for_bit("q: [100, 100, 1e5]\nr: [2.2e-10, 2.2e-10, 9.6e-9]\noutput: filtered\n", false);
+  check_export_import_bit_for_bit("motion: constant_velocity\nq: [10, 10, 1e3]\nr: 1e-10\n", false);
+  check_export_import_bit_for_bit("q: [100, 100, 1e5]\n", true);
+}
+
+TEST(EstimatorKalmanState, ImportClearsTheFirstMeasurementStart) {
+  // A fresh instance would put its position on the first measurement; an imported state is
+  // the prior, so the first innovation is y - x^- of the import, not 0.
+  BlockHarness h("estimator.kalman", "q: 100\nr: 2.2e-10\n", kRateHz);
+  h.feed("measurement", {{"x", "m"}});
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  const double values[3] = {1e-3, 0.0, 0.0};
+  const double covariance[9] = {1e-10, 0, 0, 0, 1e-6, 0, 0, 0, 1e-2};
+  const std::uint8_t present[3] = {1, 1, 1};
+  h.block().import_state(values, covariance, present);
+  h.input("measurement")[0] = 1.1e-3;
+  ASSERT_EQ(h.step(), StepStatus::ok);
+  EXPECT_NEAR(h.output("innovation")[0], 1e-4, 1e-15);
+  double residual = 0.0, variance = 0.0;
+  ASSERT_TRUE(h.block().innovation(&residual, &variance));
+  EXPECT_EQ(residual, h.output("innovation")[0]);
+  EXPECT_DOUBLE_EQ(variance, 1e-10 + 2.2e-10) << "S = H P^- H' + R of the imported P";
+}
+
+TEST(EstimatorKalmanState, PresentMaskKeepsInitialValuesAndP0) {
+  BlockHarness a("estimator.kalman", "q: [100, 100, 1e5]\nr: [2.2e-10, 2.2e-10, 9.6e-9]\np0: [1e-8, 2e-8, 3e-8]\n", kRateHz);
+  BlockHarness b("estimator.kalman", "q: [100, 100, 1e5]\nr: [2.2e-10, 2.2e-10, 9.6e-9]\np0: [1e-8, 2e-8, 3e-8]\n", kRateHz);
+  for (BlockHarness* h : {&a, &b}) {
+    h->feed("measurement", kPose);
+    ASSERT_TRUE(h->configure()) << h->diagnostics();
+    ASSERT_TRUE(h->activate());
+  }
+  for (int k = 0; k < 500; ++k) {
+    auto y = a.input("measurement");
+    for (std::size_t i = 0; i < 3; ++i) y[i] = sine_measurement(k, i);
+    ASSERT_EQ(a.step(), StepStatus::ok);
+  }
+  Exported e = export_of(a.block());
+  // Mark the y axis velocity and everything of theta_z absent; give a cross-axis term too
+  // (a UKF could): it must be dropped, the filter is block diagonal.
+  std::vector<std::uint8_t> present(9, 1);
+  present[4] = 0;
+  present[6] = present[7] = present[8] = 0;
+  e.covariance[0 * 9 + 3] = e.covariance[3 * 9 + 0] = 0.5 * std::sqrt(e.covariance[0] * e.covariance[30]);
+  b.block().import_state(e.values.data(), e.covariance.data(), present.data());
+  const Exported got = export_of(b.block());
+  const double p0[3] = {1e-8, 2e-8, 3e-8};
+  for (std::size_t i = 0; i < 9; ++i) {
+    const std::size_t axis = i / 3;
+    EXPECT_EQ(got.values[i], present[i] ? e.values[i] : 0.0) << "element " << i;
+    for (std::size_t j = 0; j < 9; ++j) {
+      double expected = 0.0;
+      if (axis == j / 3) {
+        if (present[i] && present[j]) expected = e.covariance[i * 9 + j];
+        else if (i == j) expected = p0[axis];
+      }
+      EXPECT_EQ(got.covariance[i * 9 + j], expected) << i << "," << j;
+    }
+  }
+  EXPECT_TRUE(cholesky_ok(got.covariance, 9));
+
+  // Garbage in (non-symmetric, indefinite, NaN): still a symmetric positive definite P.
+  std::vector<double> bad(81, 1.0);
+  for (std::size_t i = 0; i < 9; ++i) bad[i * 9 + i] = -1.0;
+  bad[1] = NAN;
+  bad[3 * 9 + 4] = 7.0;
+  const std::vector<std::uint8_t> all(9, 1);
+  b.block().import_state(e.values.data(), bad.data(), all.data());
+  const Exported repaired = export_of(b.block());
+  EXPECT_TRUE(cholesky_ok(repaired.covariance, 9));
+  for (std::size_t i = 0; i < 9; ++i) EXPECT_EQ(repaired.covariance[i * 9 + i], p0[i / 3]) << i;
+  ASSERT_EQ(b.step(), StepStatus::ok);
+}
+
+TEST(EstimatorKalmanState, NisAveragesToTheNumberOfChannelsWithTheTrueR) {
+  // White-noise jerk (q) and measurement noise (r) exactly as the filter assumes: the
+  // normalised innovation squared sum nu_i^2 / S_ii is chi-square with m = 3 degrees of
+  // freedom, mean 3 (Bar-Shalom, Li & Kirubarajan 2001, §5.4.2).
+  const double q[3] = {100.0, 100.0, 1e5};
+  const double r[3] = {2.2e-10, 2.2e-10, 9.6e-9};
+  BlockHarness h("estimator.kalman", "q: [100, 100, 1e5]\nr: [2.2e-10, 2.2e-10, 9.6e-9]\n", kRateHz);
+  h.feed("measurement", kPose);
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  std::vector<AxisTruth> truth;
+  for (std::size_t i = 0; i < 3; ++i) truth.emplace_back(q[i], r[i], 42 + i);
+  auto y = h.input("measurement");
+  double sum = 0.0;
+  int count = 0;
+  constexpr int kWarmup = 200;
+  constexpr int kSteps = 20000;
+  for (int k = 0; k < kWarmup + kSteps; ++k) {
+    for (std::size_t i = 0; i < 3; ++i) y[i] = truth[i].measure();
+    ASSERT_EQ(h.step(), StepStatus::ok);
+    double nu[3], s[3];
+    ASSERT_TRUE(h.block().innovation(nu, s));
+    if (k >= kWarmup) {
+      for (std::size_t i = 0; i < 3; ++i) sum += nu[i] * nu[i] / s[i];
+      ++count;
+    }
+    for (auto& t : truth) t.advance();
+  }
+  const double mean = sum / count;
+  std::printf("kalman: mean NIS over %d steps = %.4f (m = 3)\n", count, mean);
+  EXPECT_GT(mean, 0.7 * 3);
+  EXPECT_LT(mean, 1.3 * 3);
+}
+
+TEST(EstimatorKalmanInvalid, PredictCoastsTheAxisWithANaN) {
+  const std::string params = "q: [100, 100, 1e5]\nr: [2.2e-10, 2.2e-10, 9.6e-9]\ninvalid_measurement: predict\n";
+  BlockHarness h("estimator.kalman", params, kRateHz);
+  BlockHarness reference("estimator.kalman", "q: [100, 100, 1e5]\nr: [2.2e-10, 2.2e-10, 9.6e-9]\n", kRateHz);
+  for (BlockHarness* b : {&h, &reference}) {
+    b->feed("measurement", kPose);
+    ASSERT_TRUE(b->configure()) << b->diagnostics();
+    ASSERT_TRUE(b->activate());
+  }
+  auto run = [&](BlockHarness& b, int k, bool nan_on_y) {
+    auto y = b.input("measurement");
+    for (std::size_t i = 0; i < 3; ++i) y[i] = sine_measurement(k, i);
+    if (nan_on_y) y[1] = std::nan("");
+    return b.step();
+  };
+  for (int k = 0; k < 300; ++k) {
+    ASSERT_EQ(run(h, k, false), StepStatus::ok);
+    ASSERT_EQ(run(reference, k, false), StepStatus::ok);
+  }
+  const Exported before = export_of(h.block());
+  ASSERT_EQ(run(h, 300, true), StepStatus::ok) << h.block().fault_reason();
+  ASSERT_EQ(run(reference, 300, false), StepStatus::ok);
+  for (const char* port : {"pose", "velocity", "acceleration", "innovation"}) {
+    for (std::size_t i = 0; i < 3; ++i) EXPECT_TRUE(std::isfinite(h.output(port)[i])) << port << i;
+  }
+  double nu[3], s[3];
+  EXPECT_FALSE(h.block().innovation(nu, s)) << "a cycle with a coasting axis reports no innovation";
+  EXPECT_EQ(h.output("innovation")[1], 0.0);
+  // The other axes updated exactly as without the NaN.
+  for (std::size_t i : {std::size_t{0}, std::size_t{2}}) {
+    EXPECT_EQ(h.output("pose")[i], reference.output("pose")[i]);
+    EXPECT_EQ(h.output("innovation")[i], reference.output("innovation")[i]);
+  }
+  // The y axis: time update only, x^-_{k+1} = Phi x^-_k, and P^- grew.
+  const Exported after = export_of(h.block());
+  const double t = kPeriodS;
+  const double* x = &before.values[3];
+  EXPECT_DOUBLE_EQ(after.values[3], x[0] + t * x[1] + 0.5 * t * t * x[2]);
+  EXPECT_DOUBLE_EQ(after.values[4], x[1] + t * x[2]);
+  EXPECT_EQ(after.values[5], x[2]);
+  EXPECT_EQ(h.output("pose")[1], after.values[3]) << "output: predicted";
+  EXPECT_GT(after.covariance[3 * 9 + 3], before.covariance[3 * 9 + 3]);
+  EXPECT_TRUE(cholesky_ok(after.covariance, 9));
+  // Back to valid data: the update resumes and the innovation is reported again.
+  ASSERT_EQ(run(h, 301, false), StepStatus::ok);
+  EXPECT_TRUE(h.block().innovation(nu, s));
+  EXPECT_NE(h.output("innovation")[1], 0.0);
+
+  // A non-positive or NaN R from the covariance input coasts too.
+  BlockHarness c("estimator.kalman", "q: 100\ninvalid_measurement: predict\n", kRateHz);
+  c.feed("measurement", {{"x", "m"}});
+  c.feed("covariance", {{"xx", "m^2"}});
+  ASSERT_TRUE(c.configure()) << c.diagnostics();
+  ASSERT_TRUE(c.activate());
+  c.input("covariance")[0] = 1e-10;
+  c.input("measurement")[0] = 1e-4;
+  ASSERT_EQ(c.step(), StepStatus::ok);
+  EXPECT_TRUE(c.block().innovation(nu, s));
+  for (double bad : {0.0, -1e-10, std::nan("")}) {
+    c.input("covariance")[0] = bad;
+    EXPECT_EQ(c.step(), StepStatus::ok);
+    EXPECT_FALSE(c.block().innovation(nu, s));
+    EXPECT_TRUE(std::isfinite(c.output("pose")[0]));
+  }
+}
+
+TEST(EstimatorKalmanInvalid, FaultModeIsTheDefaultAndUnchanged) {
+  BlockHarness h("estimator.kalman", "q: 100\nr: 2.2e-10\ninvalid_measurement: fault\n", kRateHz);
+  h.feed("measurement", {{"x", "m"}});
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  h.input("measurement")[0] = 1e-4;
+  ASSERT_EQ(h.step(), StepStatus::ok);
+  const Exported before = export_of(h.block());
+  h.input("measurement")[0] = std::nan("");
+  EXPECT_EQ(h.step(), StepStatus::fault);
+  EXPECT_STREQ(h.block().fault_reason(), "non-finite measurement");
+  double nu = 0.0, s = 0.0;
+  EXPECT_FALSE(h.block().innovation(&nu, &s));
+  const Exported after = export_of(h.block());
+  EXPECT_EQ(after.values, before.values) << "a fault leaves the state as it was";
+  EXPECT_EQ(after.covariance, before.covariance);
+
+  BlockHarness bad("estimator.kalman", "q: 100\nr: 2.2e-10\ninvalid_measurement: coast\n", kRateHz);
+  bad.feed("measurement", {{"x", "m"}});
+  EXPECT_FALSE(bad.configure());
+  EXPECT_NE(bad.diagnostics().find("invalid_measurement"), std::string::npos) << bad.diagnostics();
+}
+
+TEST(EstimatorKalmanState, ExportImportInnovationDoNotAllocate) {
+  for (const char* motion : {"constant_acceleration", "constant_velocity"}) {
+    BlockHarness h("estimator.kalman", std::string("motion: ") + motion + "\nq: [100, 100, 1e5]\nr: 1e-10\n", kRateHz);
+    h.feed("measurement", kPose);
+    ASSERT_TRUE(h.configure()) << h.diagnostics();
+    ASSERT_TRUE(h.activate());
+    const StateLayout layout = h.block().state_layout();
+    std::vector<double> values(layout.size()), covariance(layout.size() * layout.size());
+    const std::vector<std::uint8_t> present(layout.size(), 1);
+    double nu[3], s[3];
+    auto y = h.input("measurement");
+    const long before = static_cast<long>(lode::testing::allocation_count());
+    for (int k = 0; k < 1000; ++k) {
+      y[0] = 1e-4 * std::sin(0.01 * k);
+      if (h.step() != StepStatus::ok) FAIL() << h.block().fault_reason();
+      h.block().export_state(values.data(), covariance.data());
+      h.block().import_state(values.data(), covariance.data(), present.data());
+      (void)h.block().innovation(nu, s);
     }
     EXPECT_EQ(static_cast<long>(lode::testing::allocation_count()) - before, 0) << motion;
   }

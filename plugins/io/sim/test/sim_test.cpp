@@ -611,4 +611,118 @@ TEST(IoSimRealtime, CycleDoesNotAllocate) {
   EXPECT_EQ(during, 0) << "allocations in 10000 read/write cycles";
 }
 
+// --- fault injection (issue 5: the health monitor's NaN trip) ---------------------------
+
+constexpr std::int64_t kWindowStartNs = 10'000'000;  // start_s: 0.01
+constexpr std::int64_t kWindowEndNs = 15'000'000;    // + duration_s: 0.005
+
+TEST(IoSimInject, YamlWindowMakesOneChannelNaNExactlyInTheWindow) {
+  REQUIRE_HALBACH();
+  const std::string chain = "noise_std_v: 1e-3\nmains_amplitude_v: 1e-3\nseed: 99\n";
+  Board injected(chain + "inject_nan: {channel: A_b, start_s: 0.01, duration_s: 0.005}\n");
+  Board reference(chain);
+  ASSERT_TRUE(injected.ok) << injected.why;
+  ASSERT_TRUE(reference.ok) << reference.why;
+  int nan_cycles = 0;
+  for (int k = 0; k < 40; ++k) {
+    for (Board* b : {&injected, &reference}) {
+      b->h.input("command")[0] = 0.3;
+      ASSERT_EQ(b->h.step(), StepStatus::ok);
+      b->h.write();
+    }
+    const std::int64_t t = injected.h.tick().time_ns;
+    const bool in_window = t >= kWindowStartNs && t < kWindowEndNs;
+    for (std::size_t c = 0; c < 4; ++c) {
+      const double signal = injected.h.output("signals")[c];
+      const double count = injected.h.output("counts")[c];
+      if (c == 1 && in_window) {
+        EXPECT_TRUE(std::isnan(signal)) << "cycle " << k;
+        EXPECT_TRUE(std::isnan(count)) << "cycle " << k;
+      } else {
+        // Everything else is bit for bit the board without injection (same noise draws).
+        ASSERT_EQ(signal, reference.h.output("signals")[c]) << "cycle " << k << " channel " << c;
+        ASSERT_EQ(count, reference.h.output("counts")[c]) << "cycle " << k << " channel " << c;
+      }
+    }
+    if (std::isnan(injected.h.output("signals")[1])) ++nan_cycles;
+  }
+  // 800 Hz: t = 10, 11.25, 12.5, 13.75 ms are in [10, 15) ms; 15 ms is not.
+  EXPECT_EQ(nan_cycles, 4);
+  const lode::Json d = injected.h.describe();
+  ASSERT_NE(d.find("inject_nan"), nullptr);
+  EXPECT_EQ(json_number(*d.find("inject_nan"), "channel_index"), 1.0);
+}
+
+TEST(IoSimInject, TunableInjectsLiveAndTurnsOff) {
+  REQUIRE_HALBACH();
+  Board injected("seed: 5\n");
+  Board reference("seed: 5\n");
+  ASSERT_TRUE(injected.ok && reference.ok) << injected.why;
+  lode::Block& block = injected.h.block();
+  const std::vector<lode::Tunable> tunables = block.tunables();
+  ASSERT_EQ(tunables.size(), 1u);
+  EXPECT_EQ(tunables[0].name, "inject_nan_channel");
+  EXPECT_EQ(tunables[0].min, -1.0);
+  EXPECT_EQ(tunables[0].max, 3.0);
+  EXPECT_TRUE(tunables[0].integer);
+  EXPECT_EQ(block.tunable_value(0), -1.0) << "off by default";
+  const char* why = "";
+  for (double refused : {4.0, -2.0, 0.5}) {
+    EXPECT_FALSE(block.set_tunable(0, refused, why)) << refused;
+    EXPECT_EQ(block.tunable_value(0), -1.0);
+  }
+  auto cycle = [&](int k) {
+    for (Board* b : {&injected, &reference}) {
+      ASSERT_EQ(b->h.step(), StepStatus::ok);
+      b->h.write();
+    }
+    for (std::size_t c = 0; c < 4; ++c) {
+      const bool nan_expected = k >= 10 && k < 20 && c == 2;
+      if (nan_expected) {
+        EXPECT_TRUE(std::isnan(injected.h.output("signals")[c])) << k;
+        EXPECT_TRUE(std::isnan(injected.h.output("counts")[c])) << k;
+      } else {
+        ASSERT_EQ(injected.h.output("signals")[c], reference.h.output("signals")[c]) << k << " " << c;
+        ASSERT_EQ(injected.h.output("counts")[c], reference.h.output("counts")[c]) << k << " " << c;
+      }
+    }
+  };
+  for (int k = 0; k < 10; ++k) cycle(k);
+  ASSERT_TRUE(block.set_tunable(0, 2.0, why)) << why;  // lode set stage.inject_nan_channel 2
+  EXPECT_EQ(block.tunable_value(0), 2.0);
+  for (int k = 10; k < 20; ++k) cycle(k);
+  ASSERT_TRUE(block.set_tunable(0, -1.0, why)) << why;
+  for (int k = 20; k < 30; ++k) cycle(k);
+}
+
+TEST(IoSimInject, ConfigurationErrorsAreLocated) {
+  REQUIRE_HALBACH();
+  Board unknown("inject_nan: {channel: C_a, start_s: 0.1, duration_s: 0.1}\n");
+  EXPECT_FALSE(unknown.ok);
+  EXPECT_NE(unknown.why.find("no channel 'C_a'"), std::string::npos) << unknown.why;
+  EXPECT_NE(unknown.why.find("A_a, A_b, B_a, B_b"), std::string::npos) << unknown.why;
+  Board bad("inject_nan: {channel: A_a, start_s: -1, duration_s: 0}\n");
+  EXPECT_FALSE(bad.ok);
+  EXPECT_NE(bad.why.find("start_s"), std::string::npos) << bad.why;
+  EXPECT_NE(bad.why.find("duration_s"), std::string::npos) << bad.why;
+  Board missing("inject_nan: {channel: A_a}\n");
+  EXPECT_FALSE(missing.ok);
+  EXPECT_NE(missing.why.find("start_s"), std::string::npos) << missing.why;
+}
+
+TEST(IoSimInject, InjectionDoesNotAllocate) {
+  REQUIRE_HALBACH();
+  Board b("noise_std_v: 1e-3\ninject_nan: {channel: B_a, start_s: 0.5, duration_s: 1.0}\n");
+  ASSERT_TRUE(b.ok) << b.why;
+  const char* why = "";
+  const long before = static_cast<long>(lode::testing::allocation_count());
+  for (int k = 0; k < 4000; ++k) {
+    if (k == 100) (void)b.h.block().set_tunable(0, 0.0, why);
+    if (k == 3000) (void)b.h.block().set_tunable(0, -1.0, why);
+    b.h.step();
+    b.h.write();
+  }
+  EXPECT_EQ(static_cast<long>(lode::testing::allocation_count()) - before, 0);
+}
+
 }  // namespace
