@@ -47,9 +47,22 @@ ControlService::ControlService(Pipeline& pipeline, EventLog& events) : pipeline_
   for (const auto& name : pipeline_.block_names()) {
     Entry e;
     e.block = name;
+    e.slot = pipeline_.block_slot(name);
     e.instance = pipeline_.block(name);
     if (e.instance) e.tunables = e.instance->tunables();
     entries_.push_back(std::move(e));
+  }
+}
+
+void ControlService::refresh() {
+  // A hot swap, promotion or health fallback may have put another instance into a role:
+  // its runtime parameters are those of the instance now running.
+  for (auto& e : entries_) {
+    Block* now = pipeline_.block(e.block);
+    if (now != e.instance) {
+      e.instance = now;
+      e.tunables = now ? now->tunables() : std::vector<Tunable>{};
+    }
   }
 }
 
@@ -65,6 +78,14 @@ void ControlService::before_cycle(const Tick& tick) noexcept {
   if (!state_.compare_exchange_strong(expected, kBusy, std::memory_order_acq_rel)) return;
   box_cycle_ = tick.cycle;
   box_time_ns_ = tick.time_ns;
+  if (box_slot_ && *box_slot_ != box_block_) {
+    // The health monitor swapped the block between validation and this boundary.
+    box_ok_ = false;
+    box_why_ = "the block was swapped (health fallback) while the command was in flight; retry";
+    box_previous_ = box_now_ = 0.0;
+    state_.store(kDone, std::memory_order_release);
+    return;
+  }
   box_previous_ = box_block_->tunable_value(box_index_);
   box_why_ = "";
   box_ok_ = box_write_ ? box_block_->set_tunable(box_index_, box_value_, box_why_) : true;
@@ -110,6 +131,7 @@ bool ControlService::parse_value(const std::string& text, const Tunable& t, doub
 ControlReply ControlService::exchange(const ControlRequest& r, const Entry& e, std::size_t index, bool write,
                                       double value, std::chrono::milliseconds timeout) {
   box_block_ = e.instance;
+  box_slot_ = e.slot;
   box_index_ = index;
   box_write_ = write;
   box_value_ = value;
@@ -164,9 +186,12 @@ ControlReply ControlService::exchange(const ControlRequest& r, const Entry& e, s
 ControlReply ControlService::handle(const ControlRequest& r, std::chrono::milliseconds timeout) {
   std::lock_guard lock(mutex_);
   if (r.kind == "swap" || r.kind == "promote") {
-    if (swap_handler_) return swap_handler_(r);
-    return fail(r, r.kind + ": this pipeline runner has no hot-swap service");
+    if (!swap_handler_) return fail(r, r.kind + ": this pipeline runner has no hot-swap service");
+    auto reply = swap_handler_(r);
+    refresh();
+    return reply;
   }
+  refresh();
   if (r.kind == "record_start" || r.kind == "record_stop") {
     if (record_handler_) return record_handler_(r);
     return fail(r, r.kind + ": this pipeline runner has no recorder");

@@ -7,7 +7,9 @@
 #include <chrono>
 #include <cmath>
 #include <ctime>
+#include <cstring>
 #include <fstream>
+#include <limits>
 #include <deque>
 #include <map>
 #include <set>
@@ -16,14 +18,22 @@
 #include "lode/telemetry.hpp"
 #include "lode/units.hpp"
 #include "params_node.hpp"
+#include "pipeline_impl.hpp"
 #include "port_binder.hpp"
 
 namespace lode {
 
+using namespace pipeline_detail;
+
 namespace {
 
-constexpr const char* kTopLevelKeys[] = {"pipeline", "rate_hz", "duration_s", "realtime",
-                                         "models",   "blocks",  "monitor",    "telemetry"};
+constexpr const char* kTopLevelKeys[] = {"pipeline", "rate_hz", "duration_s", "realtime", "models",
+                                         "blocks",   "monitor", "telemetry",  "health"};
+/// Keys of a block that the pipeline reads (the rest are the plugin's parameters).
+const std::vector<std::string> kPipelineBlockKeys = {"plugin", "inputs", "shadow_of", "shadow_decimation"};
+/// Outputs the pipeline adds to every shadow role.
+constexpr const char* kDisagreementPort = "disagreement";
+constexpr const char* kNisPort = "nis";
 
 std::int64_t monotonic_ns() noexcept {
   timespec ts{};
@@ -31,53 +41,6 @@ std::int64_t monotonic_ns() noexcept {
   return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
 }
 
-struct DeclaredOutput {
-  std::string name;
-  Elements elements;
-  OutputPort* port = nullptr;
-  std::size_t offset = 0;  // into the arena
-};
-
-struct DeclaredInput {
-  std::string name;
-  Elements expected;
-  bool required = true;
-  InputPort* port = nullptr;
-};
-
-struct InputWiring {
-  std::string input;       // input name on this block
-  std::string source;      // "block.port" as written
-  std::string src_block;
-  std::string src_port;
-  SourceLocation where;    // of the value
-};
-
-struct ModelSpec {
-  std::string name;
-  LoadedPlugin plugin;
-  YAML::Node node;
-  SourceLocation where;
-};
-
-struct BlockEntry {
-  std::string name;
-  std::string plugin_name;
-  LoadedPlugin plugin;
-  YAML::Node node;
-  SourceLocation where;
-  std::vector<InputWiring> wiring;
-  std::unique_ptr<Block> block;
-  std::vector<DeclaredOutput> outputs;
-  std::vector<DeclaredInput> inputs;
-  bool configured = false;
-  bool is_io() const { return plugin.descriptor && plugin.descriptor->kind == PluginKind::io; }
-  const DeclaredOutput* output(const std::string& port) const {
-    for (const auto& o : outputs)
-      if (o.name == port) return &o;
-    return nullptr;
-  }
-};
 
 std::string element_list(const Elements& e) {
   std::string s = "[";
@@ -140,64 +103,6 @@ void check_duplicate_keys(const YAML::Node& n, const std::string& path, const st
 
 }  // namespace
 
-struct Pipeline::Impl {
-  std::string name;
-  std::string file;
-  double rate_hz = 0.0;
-  std::optional<double> duration_s;
-  RealtimeSettings realtime;
-  MonitorSpec monitor;
-  TelemetrySpec telemetry;
-  std::string source_text;
-  std::map<std::string, ModelSpec> models;
-  std::vector<std::unique_ptr<BlockEntry>> blocks;  // file order
-  std::vector<double> arena;
-  std::vector<Op> ops;
-  bool active = false;
-
-  std::deque<OutputPort> feed_ports;  // storage handles of the test pseudo-block "feed"
-  PluginRegistry* registry = nullptr;
-  Diagnostics* diag = nullptr;
-
-  BlockEntry* find_block(const std::string& n) {
-    for (auto& b : blocks)
-      if (b->name == n) return b.get();
-    return nullptr;
-  }
-  const BlockEntry* find_block(const std::string& n) const {
-    for (const auto& b : blocks)
-      if (b->name == n) return b.get();
-    return nullptr;
-  }
-
-  void error(const SourceLocation& where, const std::string& field, const std::string& msg) {
-    diag->add(where, field, msg);
-  }
-
-  bool parse_top(const YAML::Node& root);
-  void parse_realtime(const YAML::Node& rt);
-  void parse_models(const YAML::Node& models_node);
-  void parse_blocks(const YAML::Node& blocks_node);
-  std::vector<BlockEntry*> order_blocks();
-  void configure_block(BlockEntry& entry);
-  void check_documented(const LoadedPlugin& plugin, const Params& params, const std::string& path);
-  void resolve_inputs();
-  void allocate_and_bind();
-  void build_ops(const std::vector<BlockEntry*>& order);
-  void parse_monitor(const YAML::Node& m);
-  void parse_telemetry(const YAML::Node& t);
-  std::optional<SignalRef> signal(const std::string& ref) const;
-
-  template <typename M>
-  std::unique_ptr<M> make_model(Params& block_params, std::string_view key, PluginKind kind) {
-    const std::string model_name = block_params.text(key);
-    if (model_name.empty()) return nullptr;
-    return make_model_named<M>(block_params, key, model_name, kind);
-  }
-  template <typename M>
-  std::unique_ptr<M> make_model_named(Params& block_params, std::string_view key,
-                                      const std::string& model_name, PluginKind kind);
-};
 
 // --------------------------------------------------------------------------------------
 // The context each block's configure() sees.
@@ -208,7 +113,8 @@ class LoaderContext final : public ConfigureContext {
 
   Params& params() override { return params_; }
   [[nodiscard]] const std::string& block_name() const override { return e_.name; }
-  [[nodiscard]] double rate_hz() const override { return p_.rate_hz; }
+  /// A decimated shadow runs at a fraction of the pipeline rate: its discretisation must know.
+  [[nodiscard]] double rate_hz() const override { return p_.rate_hz / e_.shadow_decimation; }
 
   void declare_output(OutputPort& port, const std::string& name, Elements elements) override {
     for (const auto& o : e_.outputs)
@@ -309,7 +215,7 @@ std::unique_ptr<M> Pipeline::Impl::make_model_named(Params& block_params, std::s
 
 void Pipeline::Impl::check_documented(const LoadedPlugin& plugin, const Params& params,
                                       const std::string& path) {
-  std::set<std::string> documented{"plugin", "inputs"};
+  std::set<std::string> documented(kPipelineBlockKeys.begin(), kPipelineBlockKeys.end());
   for (std::size_t i = 0; i < plugin.descriptor->param_count; ++i)
     documented.insert(plugin.descriptor->params[i].name);
   for (const auto& k : detail::read_top_level_keys(params))
@@ -332,7 +238,7 @@ bool Pipeline::Impl::parse_top(const YAML::Node& root) {
     if (!allowed.count(key))
       error(detail::location_of(kv.first, file), key,
             "unknown top-level key '" + key +
-                "' (allowed: pipeline, rate_hz, duration_s, realtime, models, blocks, monitor, telemetry)");
+                "' (allowed: pipeline, rate_hz, duration_s, realtime, models, blocks, monitor, telemetry, health)");
   }
   if (!root["pipeline"] || !root["pipeline"].IsScalar())
     error(detail::location_of(root, file), "pipeline", "missing pipeline name (pipeline: <name>)");
@@ -457,6 +363,24 @@ void Pipeline::Impl::parse_blocks(const YAML::Node& blocks_node) {
         e->plugin = *loaded;
       }
     }
+    if (const YAML::Node shadow = kv.second["shadow_of"]) {
+      e->shadow_where = detail::location_of(shadow, file);
+      if (!shadow.IsScalar() || shadow.Scalar().empty())
+        error(e->shadow_where, path + ".shadow_of", "expected the name of the block this one shadows");
+      else
+        e->shadow_of = shadow.Scalar();
+    }
+    if (const YAML::Node dec = kv.second["shadow_decimation"]) {
+      long long n = 0;
+      try { n = dec.as<long long>(); } catch (const YAML::Exception&) { n = 0; }
+      if (!kv.second["shadow_of"])
+        error(detail::location_of(dec, file), path + ".shadow_decimation", "only a shadow (shadow_of: ...) can be decimated");
+      else if (n < 1 || n > 100000)
+        error(detail::location_of(dec, file), path + ".shadow_decimation",
+              "must be an integer in 1..100000 (the shadow steps every n-th cycle, at rate_hz / n)");
+      else
+        e->shadow_decimation = static_cast<std::uint32_t>(n);
+    }
     if (const YAML::Node inputs = kv.second["inputs"]) {
       if (!inputs.IsMap()) {
         error(detail::location_of(inputs, file), path + ".inputs",
@@ -487,10 +411,35 @@ void Pipeline::Impl::parse_blocks(const YAML::Node& blocks_node) {
   }
   // Sources must exist (ports are checked once everything is configured).
   for (auto& b : blocks)
-    for (auto& w : b->wiring)
-      if (!find_block(w.src_block))
+    for (auto& w : b->wiring) {
+      const BlockEntry* src = find_block(w.src_block);
+      if (!src)
         error(w.where, "blocks." + b->name + ".inputs." + w.input,
               "no block named '" + w.src_block + "'");
+      else if (!src->shadow_of.empty())
+        error(w.where, "blocks." + b->name + ".inputs." + w.input,
+              "'" + w.src_block + "' is a shadow of '" + src->shadow_of +
+                  "': its outputs can be watched (monitor, telemetry, recording) but not wired; "
+                  "promote it (lode swap --promote " + w.src_block + ") to feed the pipeline");
+    }
+  // A shadow runs on its primary's inputs unless it names its own.
+  for (auto& b : blocks) {
+    if (b->shadow_of.empty()) continue;
+    const std::string path = "blocks." + b->name + ".shadow_of";
+    const BlockEntry* primary = find_block(b->shadow_of);
+    if (!primary) {
+      error(b->shadow_where, path, "no block named '" + b->shadow_of + "'");
+    } else if (primary == b.get()) {
+      error(b->shadow_where, path, "a block cannot shadow itself");
+    } else if (!primary->shadow_of.empty()) {
+      error(b->shadow_where, path, "'" + b->shadow_of + "' is itself a shadow (of '" + primary->shadow_of +
+                                       "'); shadow the primary instead");
+    } else if (primary->is_io() || b->is_io()) {
+      error(b->shadow_where, path, "io blocks own hardware and cannot be shadowed or shadows");
+    } else if (b->wiring.empty()) {
+      b->wiring = primary->wiring;
+    }
+  }
 }
 
 std::vector<BlockEntry*> Pipeline::Impl::order_blocks() {
@@ -498,7 +447,11 @@ std::vector<BlockEntry*> Pipeline::Impl::order_blocks() {
   // constrain the order, so feedback through the plant is not a cycle (DESIGN.md §2).
   std::vector<BlockEntry*> io, rest;
   std::vector<BlockEntry*> feeds;
-  for (auto& b : blocks) (!b->plugin.descriptor && b->configured ? feeds : b->is_io() ? io : rest).push_back(b.get());
+  std::vector<BlockEntry*> shadows;  // configured after everything else, not in the cycle order
+  for (auto& b : blocks) {
+    if (!b->shadow_of.empty()) { shadows.push_back(b.get()); continue; }
+    (!b->plugin.descriptor && b->configured ? feeds : b->is_io() ? io : rest).push_back(b.get());
+  }
   std::map<BlockEntry*, std::set<BlockEntry*>> deps;  // block -> non-io blocks it reads
   for (auto* b : rest) {
     deps[b];
@@ -527,7 +480,7 @@ std::vector<BlockEntry*> Pipeline::Impl::order_blocks() {
       }
     }
   }
-  if (order.size() + feeds.size() != blocks.size()) {
+  if (order.size() + feeds.size() + shadows.size() != blocks.size()) {
     std::string names;
     BlockEntry* first = nullptr;
     for (auto* b : rest)
@@ -546,6 +499,7 @@ std::vector<BlockEntry*> Pipeline::Impl::order_blocks() {
     for (auto* b : rest)
       if (!placed.count(b)) order.push_back(b);  // still configure them to find more problems
   }
+  order.insert(order.end(), shadows.begin(), shadows.end());
   return order;
 }
 
@@ -560,13 +514,22 @@ void Pipeline::Impl::configure_block(BlockEntry& e) {
   }
   made.release();
   e.block.reset(block);
-  Params params = detail::make_params(e.node, path, file, diag, {"plugin", "inputs"});
+  Params params = detail::make_params(e.node, path, file, diag, kPipelineBlockKeys);
   LoaderContext ctx(*this, e, params);
   Status st;
+  bool threw = true;
   try {
     st = e.block->configure(ctx);
+    threw = false;
   } catch (const std::exception& ex) {
     st = Status::error(std::string("configure() threw: ") + ex.what());
+  } catch (...) {
+    st = Status::error("configure() threw a non-standard exception");
+  }
+  if (threw) {  // keys it never got to read are not the user's mistake: report the bug only
+    error(e.where, path, st.message());
+    e.configured = true;
+    return;
   }
   detail::report_unread_keys(params);
   check_documented(e.plugin, params, path);
@@ -575,8 +538,13 @@ void Pipeline::Impl::configure_block(BlockEntry& e) {
 }
 
 void Pipeline::Impl::resolve_inputs() {
-  for (auto& b : blocks) {
-    if (!b->block) continue;
+  for (auto& b : blocks)
+    if (b->block) resolve_inputs_of(*b);
+}
+
+void Pipeline::Impl::resolve_inputs_of(BlockEntry& entry) {
+  {
+    BlockEntry* b = &entry;
     const std::string path = "blocks." + b->name + ".inputs";
     // Every wired input must be declared, every required one wired.
     for (const auto& w : b->wiring) {
@@ -640,21 +608,126 @@ void Pipeline::Impl::allocate_and_bind() {
   // One allocation for every signal of the pipeline; never resized afterwards, so the
   // pointers handed to the blocks stay valid for the pipeline's lifetime.
   arena.assign(total, 0.0);
-  for (auto& b : blocks)
+  for (auto& b : blocks) {
     for (auto& o : b->outputs) PortBinder::bind(*o.port, arena.data() + o.offset, o.elements.size());
-  for (auto& b : blocks)
-    for (auto& d : b->inputs)
-      for (const auto& w : b->wiring) {
-        if (w.input != d.name) continue;
-        const BlockEntry* src = find_block(w.src_block);
-        const DeclaredOutput* out = src ? src->output(w.src_port) : nullptr;
-        if (out) PortBinder::bind(*d.port, arena.data() + out->offset, out->elements.size());
+    b->live.store(b.get(), std::memory_order_relaxed);
+  }
+  for (auto& b : blocks) bind_inputs(*b);
+}
+
+void Pipeline::Impl::bind_inputs(BlockEntry& record) {
+  for (auto& d : record.inputs)
+    for (const auto& w : record.wiring) {
+      if (w.input != d.name) continue;
+      const BlockEntry* src = find_block(w.src_block);
+      const DeclaredOutput* out = src ? src->output(w.src_port) : nullptr;
+      if (out) PortBinder::bind(*d.port, arena.data() + out->offset, out->elements.size());
+    }
+}
+
+void Pipeline::Impl::check_shadows(const std::vector<BlockEntry*>& order) {
+  for (auto* b : order) {
+    if (b->shadow_of.empty() || !b->block) continue;
+    const std::string path = "blocks." + b->name + ".shadow_of";
+    BlockEntry* primary = find_block(b->shadow_of);
+    if (!primary || !primary->block) continue;  // reported already
+    // A shadow must be able to take its primary's place (promotion, fallback): every output
+    // of the primary, with the same elements.
+    for (const auto& po : primary->outputs) {
+      const DeclaredOutput* so = b->output(po.name);
+      std::string problem;
+      if (!so) {
+        problem = "it has no output '" + po.name + "'";
+      } else if (so->elements.size() != po.elements.size()) {
+        problem = "its output '" + po.name + "' has " + std::to_string(so->elements.size()) + " elements, " +
+                  b->shadow_of + "." + po.name + " has " + std::to_string(po.elements.size());
+      } else {
+        for (std::size_t i = 0; i < po.elements.size() && problem.empty(); ++i)
+          if (so->elements[i].unit != po.elements[i].unit)
+            problem = "its output '" + po.name + "." + so->elements[i].name + "' is in '" + so->elements[i].unit +
+                      "', " + b->shadow_of + "." + po.name + "." + po.elements[i].name + " in '" +
+                      po.elements[i].unit + "'";
       }
+      if (!problem.empty())
+        error(b->shadow_where, path,
+              "shadow '" + b->name + "' (" + b->plugin_name + ") cannot stand in for '" + b->shadow_of + "' (" +
+                  primary->plugin_name + "): " + problem +
+                  " (a shadow must provide every output of its primary, same size and units)");
+    }
+    for (const auto& o : b->outputs)
+      if (o.name == kDisagreementPort || o.name == kNisPort)
+        error(b->shadow_where, path, "plugin " + b->plugin_name + " declares an output '" + o.name +
+                                         "', a name the pipeline reserves on shadows for their statistics");
+    // Its inputs must be computed before the primary steps (it runs right after it).
+    std::set<const BlockEntry*> before;
+    for (auto* o : order) {
+      if (o == primary) break;
+      before.insert(o);
+    }
+    for (const auto& w : b->wiring) {
+      const BlockEntry* src = find_block(w.src_block);
+      if (src && !src->is_io() && !before.count(src) && src->configured && src->block)
+        error(w.where, "blocks." + b->name + ".inputs." + w.input,
+              "'" + w.source + "' is computed after '" + b->shadow_of +
+                  "' in the cycle; a shadow steps right after its primary and can only read what the "
+                  "primary could");
+    }
+    if (primary->outputs.empty()) {
+      error(b->shadow_where, path, "'" + b->shadow_of + "' has no outputs: there is nothing to shadow");
+      continue;
+    }
+    // Statistics the pipeline publishes for the shadow: disagreement with the primary (on the
+    // primary's first output) and the normalised innovation squared.
+    const DeclaredOutput& first = primary->outputs.front();
+    Elements diff = first.elements;
+    b->outputs.push_back({kDisagreementPort, diff, &synthetic_ports.emplace_back(), 0, true});
+    b->outputs.push_back({kNisPort, Elements{{"nis", "1"}}, &synthetic_ports.emplace_back(), 0, true});
+  }
+}
+
+std::vector<Binding> Pipeline::Impl::plan_for(BlockEntry& record, const BlockEntry& role) {
+  std::vector<Binding> plan;
+  for (auto& o : record.outputs) {
+    if (o.synthetic) continue;
+    const DeclaredOutput* target = role.output(o.name);
+    bool same = target && !target->synthetic && target->elements.size() == o.elements.size();
+    for (std::size_t i = 0; same && i < o.elements.size(); ++i)
+      same = units_compatible(o.elements[i].unit, target->elements[i].unit) &&
+             units_compatible(target->elements[i].unit, o.elements[i].unit);
+    double* data = same ? arena.data() + target->offset : record.staging.data() + o.offset;
+    plan.push_back({o.port, data, o.elements.size()});
+  }
+  return plan;
+}
+
+void Pipeline::Impl::prepare_record(BlockEntry& record, const Family& family) {
+  // Staging: the record's own storage (offsets of a role's outputs are arena offsets; the
+  // staging copy is laid out the same way, one slot per element).
+  std::size_t size = 0;
+  if (record.candidate) {
+    size = 0;
+    for (auto& o : record.outputs) {
+      o.offset = size;
+      size += o.elements.size();
+    }
+  } else {
+    // Roles keep their arena offsets; give staging the same span.
+    size = 0;
+    for (auto& o : record.outputs)
+      if (!o.synthetic) size = std::max(size, o.offset + o.elements.size());
+  }
+  record.staging.assign(size, 0.0);
+  record.staging_plan.clear();
+  for (auto& o : record.outputs)
+    if (!o.synthetic) record.staging_plan.push_back({o.port, record.staging.data() + o.offset, o.elements.size()});
+  record.plans.clear();
+  for (const BlockEntry* role : family.roles) record.plans.push_back(plan_for(record, *role));
+  record.layout = record.block ? record.block->state_layout() : StateLayout{};
 }
 
 void Pipeline::Impl::build_ops(const std::vector<BlockEntry*>& order) {
   for (auto* b : order) {
-    if (!b->block) continue;
+    if (!b->block || !b->shadow_of.empty()) continue;
     Op op;
     op.block = b->block.get();
     op.label = b->is_io() ? b->name + ".read" : b->name;
@@ -672,14 +745,226 @@ void Pipeline::Impl::build_ops(const std::vector<BlockEntry*>& order) {
   }
 }
 
+namespace {
+/// Offset of an output that load-time validation guarantees to exist.
+std::size_t output_offset(const BlockEntry& b, const std::string& port) {
+  const DeclaredOutput* o = b.output(port);
+  return o ? o->offset : 0;
+}
+}  // namespace
+
+void Pipeline::Impl::build_families() {
+  for (std::size_t i = 0; i < ops.size(); ++i) {
+    if (ops[i].write_phase) continue;
+    BlockEntry* primary = nullptr;
+    for (auto& b : blocks)
+      if (b->block.get() == ops[i].block) primary = b.get();
+    if (!primary || primary->is_io()) continue;  // io blocks own hardware: not swappable
+    Family f;
+    f.primary = primary;
+    f.op = i;
+    f.roles.push_back(primary);
+    for (auto& b : blocks)
+      if (b->shadow_of == primary->name && b->block && !primary->outputs.empty()) f.roles.push_back(b.get());
+    for (std::size_t r = 1; r < f.roles.size(); ++r) {
+      BlockEntry* role = f.roles[r];
+      ShadowSlot slot;
+      slot.block = role->block.get();
+      slot.role = role;
+      slot.decimation = role->shadow_decimation;
+      const DeclaredOutput& first = primary->outputs.front();
+      slot.primary = arena.data() + first.offset;
+      slot.mine = arena.data() + output_offset(*role, first.name);
+      slot.disagreement = arena.data() + output_offset(*role, kDisagreementPort);
+      slot.disagreement_size = first.elements.size();
+      slot.nis = arena.data() + output_offset(*role, kNisPort);
+      slot.nu.assign(std::max<std::size_t>(1, role->block->innovation_size()), 0.0);
+      slot.s.assign(slot.nu.size(), 0.0);
+      f.shadows.push_back(std::move(slot));
+    }
+    for (const auto& o : primary->outputs) f.ranges.push_back({arena.data() + o.offset, nullptr, o.elements.size()});
+    ops[i].family = static_cast<int>(families.size());
+    for (std::size_t r = 0; r < f.roles.size(); ++r) {
+      f.roles[r]->family = static_cast<int>(families.size());
+      f.roles[r]->family_role = static_cast<int>(r);
+    }
+    families.push_back(std::move(f));
+  }
+  for (auto& f : families)
+    for (auto* role : f.roles) prepare_record(*role, f);
+}
+
+std::vector<BlockEntry*> Pipeline::Impl::instances() {
+  std::vector<BlockEntry*> out;
+  for (auto& b : blocks)
+    if (b->block) out.push_back(b.get());
+  for (auto& c : pool)
+    if (c->block) out.push_back(c.get());
+  return out;
+}
+
+void Pipeline::Impl::exchange_roles(Family& f, int role_a, int role_b) noexcept {
+  BlockEntry* a = f.roles[static_cast<std::size_t>(role_a)]->live.load(std::memory_order_relaxed);
+  BlockEntry* b = f.roles[static_cast<std::size_t>(role_b)]->live.load(std::memory_order_relaxed);
+  for (const auto& bind : a->plans[static_cast<std::size_t>(role_b)]) PortBinder::bind(*bind.port, bind.data, bind.size);
+  for (const auto& bind : b->plans[static_cast<std::size_t>(role_a)]) PortBinder::bind(*bind.port, bind.data, bind.size);
+  auto set_instance = [&](int role, BlockEntry* record) {
+    if (role == 0) ops[f.op].block = record->block.get();
+    else f.shadows[static_cast<std::size_t>(role - 1)].block = record->block.get();
+    f.roles[static_cast<std::size_t>(role)]->live.store(record, std::memory_order_release);
+  };
+  set_instance(role_a, b);
+  set_instance(role_b, a);
+}
+
+BlockEntry* Pipeline::Impl::install(Family& f, int role, BlockEntry& record) noexcept {
+  BlockEntry* old = f.roles[static_cast<std::size_t>(role)]->live.load(std::memory_order_relaxed);
+  for (const auto& bind : old->staging_plan) PortBinder::bind(*bind.port, bind.data, bind.size);
+  for (const auto& bind : record.plans[static_cast<std::size_t>(role)]) PortBinder::bind(*bind.port, bind.data, bind.size);
+  if (role == 0) ops[f.op].block = record.block.get();
+  else f.shadows[static_cast<std::size_t>(role - 1)].block = record.block.get();
+  f.roles[static_cast<std::size_t>(role)]->live.store(&record, std::memory_order_release);
+  return old;
+}
+
+void Pipeline::Impl::push_trip(const TripRecord& t) noexcept {
+  const std::uint64_t head = trip_head.load(std::memory_order_relaxed);
+  if (head - trip_tail.load(std::memory_order_acquire) >= kTripCapacity) {
+    trips_lost.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  trips[head % kTripCapacity] = t;
+  trip_head.store(head + 1, std::memory_order_release);
+}
+
+namespace {
+/// In-place Cholesky test of a symmetric n x n row-major matrix (destroys `a`). True when
+/// positive definite. No allocation: the health monitor runs it on the RT thread.
+bool positive_definite(double* a, std::size_t n) noexcept {
+  for (std::size_t j = 0; j < n; ++j) {
+    double d = a[j * n + j];
+    for (std::size_t k = 0; k < j; ++k) d -= a[j * n + k] * a[j * n + k];
+    if (!(d > 0.0) || !std::isfinite(d)) return false;
+    const double l = std::sqrt(d);
+    a[j * n + j] = l;
+    for (std::size_t i = j + 1; i < n; ++i) {
+      double v = a[i * n + j];
+      for (std::size_t k = 0; k < j; ++k) v -= a[i * n + k] * a[j * n + k];
+      a[i * n + j] = v / l;
+    }
+  }
+  return true;
+}
+}  // namespace
+
+StepStatus Pipeline::Impl::after_primary(Family& f, const Tick& tick, StepStatus status, std::int64_t step_ns,
+                                         const char*& reason) noexcept {
+  // Shadows run on the inputs the primary just used; their faults are counted, never fatal.
+  for (auto& slot : f.shadows) {
+    slot.stepped_ok = false;
+    if (slot.decimation > 1 && tick.cycle % slot.decimation != 0) continue;
+    Tick t = tick;
+    t.dt_s = tick.dt_s * slot.decimation;
+    if (slot.block->step(t) != StepStatus::ok) {
+      ++slot.faults;
+      continue;
+    }
+    slot.stepped_ok = true;
+    for (std::size_t i = 0; i < slot.disagreement_size; ++i) slot.disagreement[i] = slot.mine[i] - slot.primary[i];
+    double nis = std::numeric_limits<double>::quiet_NaN();
+    const std::size_t m = slot.block->innovation_size();
+    if (m > 0 && m <= slot.nu.size() && slot.block->innovation(slot.nu.data(), slot.s.data())) {
+      nis = 0.0;
+      for (std::size_t i = 0; i < m; ++i) nis += slot.nu[i] * slot.nu[i] / slot.s[i];
+    }
+    *slot.nis = nis;
+  }
+  if (f.warming) {
+    f.warming->step(tick);  // a failing candidate is caught when it is installed (health)
+    if (f.warming_left > 0) --f.warming_left;
+  }
+  const HealthSpec& h = f.health;
+  if (!h.enabled) return status;
+
+  const char* trip = nullptr;
+  Block* primary = ops[f.op].block;
+  if (status != StepStatus::ok) trip = primary->fault_reason();
+  if (!trip && h.non_finite)
+    for (const auto& r : f.ranges)
+      for (std::size_t i = 0; i < r.size && !trip; ++i)
+        if (!std::isfinite(r.primary[i])) trip = "non-finite output";
+  BlockEntry* live = f.roles[0]->live.load(std::memory_order_relaxed);
+  if (!trip && h.covariance_every > 0 && live->layout.covariance && tick.cycle % h.covariance_every == 0 &&
+      f.state_values.size() >= live->layout.size() &&
+      f.state_covariance.size() >= live->layout.size() * live->layout.size()) {
+    primary->export_state(f.state_values.data(), f.state_covariance.data());
+    for (std::size_t i = 0; i < live->layout.size() && !trip; ++i)
+      if (!std::isfinite(f.state_values[i])) trip = "non-finite state";
+    if (!trip && !positive_definite(f.state_covariance.data(), live->layout.size()))
+      trip = "covariance not positive definite";
+  }
+  if (!trip && h.nis_window > 0) {
+    const std::size_t m = primary->innovation_size();
+    if (m > 0 && m <= f.nu.size() && primary->innovation(f.nu.data(), f.s.data())) {
+      double nis = 0.0;
+      for (std::size_t i = 0; i < m; ++i) nis += f.nu[i] * f.nu[i] / f.s[i];
+      if (f.nis_count == h.nis_window) f.nis_sum -= f.nis_ring[f.nis_pos];
+      else ++f.nis_count;
+      f.nis_ring[f.nis_pos] = nis;
+      f.nis_sum += nis;
+      f.nis_pos = (f.nis_pos + 1) % h.nis_window;
+      if (!std::isfinite(nis)) trip = "non-finite innovation";
+      else if (f.nis_count == h.nis_window && f.nis_sum / h.nis_window > h.nis_threshold)
+        trip = "innovation test failed (windowed mean NIS over threshold)";
+    }
+  }
+  if (!trip && h.step_budget_ns > 0) {
+    f.over_budget = step_ns > h.step_budget_ns ? f.over_budget + 1 : 0;
+    if (f.over_budget >= h.budget_cycles) trip = "step time over budget";
+  }
+  if (!trip) return status;
+
+  TripRecord record;
+  record.cycle = tick.cycle;
+  record.time_ns = tick.time_ns;
+  record.family = static_cast<int>(&f - families.data());
+  record.reason = trip;
+  const int slot_index = h.fallback_slot;
+  if (slot_index >= 0 && !f.fallback_used && f.shadows[static_cast<std::size_t>(slot_index)].stepped_ok) {
+    // The fallback already stepped on this cycle's inputs: exchange roles and hand its outputs
+    // to the primary storage now, so the blocks downstream use them in this very cycle.
+    auto& slot = f.shadows[static_cast<std::size_t>(slot_index)];
+    bool finite = true;
+    for (const auto& r : f.ranges)
+      for (std::size_t i = 0; i < r.size; ++i) finite = finite && std::isfinite(r.shadow[i]);
+    if (finite) {
+      exchange_roles(f, 0, slot_index + 1);
+      for (const auto& r : f.ranges) std::memcpy(r.primary, r.shadow, r.size * sizeof(double));
+      (void)slot;
+      f.fallback_used = true;
+      f.nis_count = 0;
+      f.nis_sum = 0.0;
+      f.nis_pos = 0;
+      f.over_budget = 0;
+      record.fallback_slot = slot_index;
+      push_trip(record);
+      return StepStatus::ok;
+    }
+  }
+  push_trip(record);
+  reason = trip;
+  return StepStatus::fault;
+}
+
 std::optional<SignalRef> Pipeline::Impl::signal(const std::string& ref) const {
   const auto dot = ref.find('.');
   if (dot == std::string::npos) return std::nullopt;
   const BlockEntry* b = find_block(ref.substr(0, dot));
   if (!b) return std::nullopt;
   const DeclaredOutput* o = b->output(ref.substr(dot + 1));
-  if (!o || !o->port || !o->port->bound()) return std::nullopt;
-  return SignalRef{b->name, o->name, o->port->data(), &o->elements};
+  // The role's storage in the arena (never the port: a hot swap re-binds ports).
+  if (!o || arena.empty() || o->offset + o->elements.size() > arena.size()) return std::nullopt;
+  return SignalRef{b->name, o->name, arena.data() + o->offset, &o->elements};
 }
 
 void Pipeline::Impl::parse_monitor(const YAML::Node& m) {
@@ -903,6 +1188,105 @@ void Pipeline::Impl::parse_telemetry(const YAML::Node& t) {
   detail::report_unread_keys(p);
 }
 
+void Pipeline::Impl::parse_health(const YAML::Node& h) {
+  if (!h) return;
+  if (!h.IsMap()) {
+    error(detail::location_of(h, file), "health", "expected a map `<block>: {fallback: ..., ...}`");
+    return;
+  }
+  for (const auto& kv : h) {
+    const std::string block_name = kv.first.as<std::string>();
+    const std::string path = "health." + block_name;
+    const SourceLocation where = detail::location_of(kv.first, file);
+    BlockEntry* b = find_block(block_name);
+    if (!b) {
+      error(where, path, "no block named '" + block_name + "'");
+      continue;
+    }
+    if (b->family < 0 || b->family_role != 0) {
+      error(where, path, "'" + block_name + "' is " + (b->is_io() ? "an io block" : !b->shadow_of.empty() ? "a shadow" : "not a block that steps") +
+                             "; the health monitor watches estimators and other non-io blocks of the cycle");
+      continue;
+    }
+    if (!kv.second.IsMap()) {
+      error(detail::location_of(kv.second, file), path, "expected a map (fallback, non_finite, ...)");
+      continue;
+    }
+    Family& f = families[static_cast<std::size_t>(b->family)];
+    Params p = detail::make_params(kv.second, path, file, diag);
+    HealthSpec& spec = f.health;
+    spec.enabled = true;
+    spec.non_finite = p.flag("non_finite", true);
+    const auto every = p.integer("covariance_check_every", 1);
+    p.check(every >= 0 && every <= 1000000, "covariance_check_every", "must be in 0..1000000 cycles (0 = off)");
+    spec.covariance_every = static_cast<std::uint32_t>(std::clamp<std::int64_t>(every, 0, 1000000));
+    if (spec.covariance_every > 0 && b->layout.covariance) {
+      f.state_values.assign(b->layout.size(), 0.0);
+      f.state_covariance.assign(b->layout.size() * b->layout.size(), 0.0);
+    }
+    const auto window = p.integer("nis_window", 0);
+    p.check(window >= 0 && window <= 1000000, "nis_window", "must be in 0..1000000 cycles (0 = off)");
+    spec.nis_window = static_cast<std::uint32_t>(std::clamp<std::int64_t>(window, 0, 1000000));
+    const std::size_t m = b->block->innovation_size();
+    if (spec.nis_window > 0 && m == 0)
+      p.fail("nis_window", "plugin " + b->plugin_name + " reports no innovation (innovation_size() = 0): no NIS test possible");
+    const double probability = p.number("nis_false_alarm", 1e-6);
+    p.check(probability > 0 && probability < 0.5, "nis_false_alarm",
+            "must be in (0, 0.5): the chance that a healthy filter trips per window");
+    if (p.has("nis_threshold")) {
+      spec.nis_threshold = p.number("nis_threshold");
+      p.check(spec.nis_threshold > 0, "nis_threshold", "must be > 0 (the window mean of NIS, whose expectation is the channel count)");
+    } else if (spec.nis_window > 0 && m > 0) {
+      // The window mean of NIS is chi-square with W m degrees of freedom divided by W (white,
+      // consistent innovations). Wilson-Hilferty: chi2_p(k) ~ k (1 - 2/(9k) + z sqrt(2/(9k)))^3.
+      const double k = static_cast<double>(spec.nis_window) * static_cast<double>(m);
+      // Upper normal quantile by bisection on erfc (no new dependency, off the RT thread).
+      double lo = 0.0, hi = 40.0;
+      for (int it = 0; it < 200; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        (0.5 * std::erfc(mid / std::sqrt(2.0)) > probability ? lo : hi) = mid;
+      }
+      const double z = 0.5 * (lo + hi);
+      const double c = 2.0 / (9.0 * k);
+      spec.nis_threshold = k * std::pow(1.0 - c + z * std::sqrt(c), 3) / static_cast<double>(spec.nis_window);
+    }
+    if (spec.nis_window > 0) {
+      f.nis_ring.assign(spec.nis_window, 0.0);
+      f.nu.assign(std::max<std::size_t>(m, 1), 0.0);
+      f.s.assign(f.nu.size(), 0.0);
+    }
+    const double budget_us = p.number("step_budget_us", 0.0);
+    p.check(budget_us >= 0 && budget_us <= 1e6, "step_budget_us", "must be in [0, 1e6] us (0 = off)");
+    spec.step_budget_ns = static_cast<std::int64_t>(std::llround(budget_us * 1e3));
+    const auto cycles = p.integer("budget_cycles", 3);
+    p.check(cycles >= 1 && cycles <= 100000, "budget_cycles", "must be in 1..100000 (consecutive cycles over budget)");
+    spec.budget_cycles = static_cast<std::uint32_t>(std::clamp<std::int64_t>(cycles, 1, 100000));
+    if (p.has("fallback")) {
+      const std::string fb = p.text("fallback");
+      int slot = -1;
+      for (std::size_t r = 1; r < f.roles.size(); ++r)
+        if (f.roles[r]->name == fb) slot = static_cast<int>(r) - 1;
+      if (slot < 0) {
+        std::string shadows;
+        for (std::size_t r = 1; r < f.roles.size(); ++r) shadows += (shadows.empty() ? "" : ", ") + f.roles[r]->name;
+        p.fail("fallback", "'" + fb + "' is not a shadow of '" + block_name + "' (declare it with `shadow_of: " + block_name +
+                               "`" + (shadows.empty() ? "" : "; its shadows: " + shadows) +
+                               "): the fallback must run every cycle to take over in the same cycle");
+      } else if (f.roles[static_cast<std::size_t>(slot) + 1]->shadow_decimation != 1) {
+        p.fail("fallback", "'" + fb + "' is decimated (shadow_decimation " +
+                               std::to_string(f.roles[static_cast<std::size_t>(slot) + 1]->shadow_decimation) +
+                               "): a fallback must step every cycle");
+      } else {
+        spec.fallback_slot = slot;
+        const BlockEntry* role = f.roles[static_cast<std::size_t>(slot) + 1];
+        for (std::size_t i = 0; i < f.ranges.size(); ++i)
+          f.ranges[i].shadow = arena.data() + output_offset(*role, b->outputs[i].name);
+      }
+    }
+    detail::report_unread_keys(p);
+  }
+}
+
 // --------------------------------------------------------------------------------------
 
 Pipeline::Pipeline() : impl_(std::make_unique<Impl>()) {}
@@ -954,11 +1338,14 @@ std::unique_ptr<Pipeline> Pipeline::load_text(const std::string& yaml, const std
   const auto order = im.order_blocks();
   for (auto* b : order) im.configure_block(*b);
   im.resolve_inputs();
+  im.check_shadows(order);
   if (!diagnostics.empty()) return nullptr;
   im.allocate_and_bind();
   im.build_ops(order);
+  im.build_families();
   im.parse_monitor(root["monitor"]);
   im.parse_telemetry(root["telemetry"]);
+  im.parse_health(root["health"]);
   if (!diagnostics.empty()) return nullptr;
   return p;
 }
@@ -980,7 +1367,29 @@ std::optional<SignalRef> Pipeline::signal(const std::string& ref) const { return
 
 Block* Pipeline::block(const std::string& name) const {
   const BlockEntry* b = impl_->find_block(name);
-  return b ? b->block.get() : nullptr;
+  if (!b) return nullptr;
+  const BlockEntry* live = b->live.load(std::memory_order_acquire);
+  return live ? live->block.get() : b->block.get();
+}
+
+Block* const* Pipeline::block_slot(const std::string& name) const {
+  const BlockEntry* b = impl_->find_block(name);
+  if (!b || !b->block) return nullptr;
+  if (b->family >= 0) {
+    Family& f = impl_->families[static_cast<std::size_t>(b->family)];
+    return b->family_role == 0 ? &impl_->ops[f.op].block
+                               : &f.shadows[static_cast<std::size_t>(b->family_role - 1)].block;
+  }
+  for (const auto& op : impl_->ops)
+    if (op.block == b->block.get()) return &op.block;
+  return nullptr;
+}
+
+std::string Pipeline::plugin_of(const std::string& name) const {
+  const BlockEntry* b = impl_->find_block(name);
+  if (!b) return {};
+  const BlockEntry* live = b->live.load(std::memory_order_acquire);
+  return live ? live->plugin_name : b->plugin_name;
 }
 
 std::vector<std::string> Pipeline::block_names() const {
@@ -990,18 +1399,60 @@ std::vector<std::string> Pipeline::block_names() const {
   return out;
 }
 
+std::vector<Pipeline::ShadowInfo> Pipeline::shadows() const {
+  std::vector<ShadowInfo> out;
+  for (const auto& b : impl_->blocks)
+    if (!b->shadow_of.empty()) out.push_back({b->name, b->shadow_of});
+  return out;
+}
+
 std::vector<SignalRef> Pipeline::signals() const {
+  // Role storage (arena), never through a port: a hot swap re-binds ports, not storage.
   std::vector<SignalRef> out;
   for (const auto& b : impl_->blocks)
-    for (const auto& o : b->outputs) out.push_back({b->name, o.name, o.port->data(), &o.elements});
+    for (const auto& o : b->outputs) out.push_back({b->name, o.name, impl_->arena.data() + o.offset, &o.elements});
+  return out;
+}
+
+std::vector<Pipeline::HealthTrip> Pipeline::take_health_trips() {
+  std::vector<HealthTrip> out;
+  auto& im = *impl_;
+  const std::uint64_t head = im.trip_head.load(std::memory_order_acquire);
+  std::uint64_t tail = im.trip_tail.load(std::memory_order_relaxed);
+  for (; tail < head; ++tail) {
+    const TripRecord& t = im.trips[tail % Impl::kTripCapacity];
+    HealthTrip h;
+    h.cycle = t.cycle;
+    h.time_ns = t.time_ns;
+    h.reason = t.reason;
+    if (t.family >= 0) {
+      const Family& f = im.families[static_cast<std::size_t>(t.family)];
+      h.block = f.primary->name;
+      if (t.fallback_slot >= 0) {
+        const BlockEntry* role = f.roles[static_cast<std::size_t>(t.fallback_slot + 1)];
+        h.fallback = role->name;
+        // After the exchange the fallback's instance runs in the primary role.
+        const BlockEntry* live = f.roles[0]->live.load(std::memory_order_acquire);
+        h.fallback_plugin = live ? live->plugin_name : "";
+      }
+    }
+    out.push_back(std::move(h));
+  }
+  im.trip_tail.store(tail, std::memory_order_release);
+  const auto lost = im.trips_lost.exchange(0, std::memory_order_relaxed);
+  if (lost > 0) {
+    HealthTrip h;
+    h.reason = "health trips lost (ring full)";
+    h.lost = lost;
+    out.push_back(std::move(h));
+  }
   return out;
 }
 
 Status Pipeline::activate() {
   std::fill(impl_->arena.begin(), impl_->arena.end(), 0.0);
   std::vector<Block*> activated;
-  for (auto& b : impl_->blocks) {
-    if (!b->block) continue;
+  for (auto* b : impl_->instances()) {
     Status st;
     try {
       st = b->block->activate();
@@ -1016,6 +1467,13 @@ Status Pipeline::activate() {
     }
     activated.push_back(b->block.get());
   }
+  for (auto& f : impl_->families) {
+    f.fallback_used = false;
+    f.nis_count = 0;
+    f.nis_sum = 0.0;
+    f.nis_pos = 0;
+    f.over_budget = 0;
+  }
   impl_->active = true;
   return {};
 }
@@ -1025,6 +1483,8 @@ void Pipeline::deactivate() noexcept {
   drive_safe();
   for (auto& b : impl_->blocks)
     if (b->block) b->block->deactivate();
+  for (auto& c : impl_->pool)
+    if (c->block) c->block->deactivate();
   impl_->active = false;
 }
 
@@ -1037,12 +1497,18 @@ Pipeline::CycleResult Pipeline::run_cycle(const Tick& tick, bool time_ops) noexc
   auto& ops = impl_->ops;
   for (std::size_t i = 0; i < ops.size(); ++i) {
     Op& op = ops[i];
-    const std::int64_t start = time_ops ? monotonic_ns() : 0;
-    const StepStatus s = op.write_phase ? op.block->write(tick) : op.block->step(tick);
-    if (time_ops) op.exec_time->record(monotonic_ns() - start);
+    Family* family = op.family >= 0 ? &impl_->families[static_cast<std::size_t>(op.family)] : nullptr;
+    const bool timed = time_ops || (family && family->health.step_budget_ns > 0);
+    const std::int64_t start = timed ? monotonic_ns() : 0;
+    StepStatus s = op.write_phase ? op.block->write(tick) : op.block->step(tick);
+    const std::int64_t elapsed = timed ? monotonic_ns() - start : 0;
+    if (time_ops) op.exec_time->record(elapsed);
+    const char* reason = nullptr;
+    if (family && (family->health.enabled || !family->shadows.empty() || family->warming))
+      s = impl_->after_primary(*family, tick, s, elapsed, reason);
     if (s != StepStatus::ok) {
       drive_safe();
-      return {s, static_cast<int>(i)};
+      return {s, static_cast<int>(i), reason};
     }
   }
   return {};
@@ -1104,16 +1570,25 @@ Json Pipeline::describe() const {
   }
   j["models"] = std::move(models);
   Json blocks = Json::object();
-  for (const auto& b : im.blocks) {
+  for (const auto& role : im.blocks) {
+    if (!role->block && role->live.load() == role.get()) continue;
+    // The instance now in the role (a hot swap or promotion may have changed it).
+    const BlockEntry* b = role->live.load(std::memory_order_acquire);
+    if (!b || !b->block) b = role.get();
     if (!b->block) continue;
     Json bj = Json::object();
     bj["plugin"] = b->plugin_name;
     bj["kind"] = to_string(b->plugin.descriptor->kind);
     bj["plugin_file"] = b->plugin.path;
+    if (!role->shadow_of.empty()) {
+      bj["shadow_of"] = role->shadow_of;
+      bj["shadow_decimation"] = static_cast<std::uint64_t>(role->shadow_decimation);
+    }
+    if (b != role.get()) bj["swapped_in_from"] = b->name;
     Json params = to_json(b->node);
     Json clean = Json::object();
     for (const auto& [k, v] : params.members())
-      if (k != "plugin" && k != "inputs") clean[k] = v;
+      if (std::find(kPipelineBlockKeys.begin(), kPipelineBlockKeys.end(), k) == kPipelineBlockKeys.end()) clean[k] = v;
     bj["parameters"] = std::move(clean);
     Json ins = Json::object();
     for (const auto& d : b->inputs) {
@@ -1133,12 +1608,18 @@ Json Pipeline::describe() const {
     }
     bj["inputs"] = std::move(ins);
     Json outs = Json::object();
-    for (const auto& o : b->outputs) outs[o.name] = elements_json(o.elements);
+    for (const auto& o : role->outputs) outs[o.name] = elements_json(o.elements);
     bj["outputs"] = std::move(outs);
+    if (!b->layout.empty()) {
+      Json st = Json::object();
+      st["elements"] = elements_json(b->layout.elements);
+      st["covariance"] = b->layout.covariance;
+      bj["state"] = std::move(st);
+    }
     Json derived = Json::object();
     b->block->describe(derived);
     bj["derived"] = std::move(derived);
-    blocks[b->name] = std::move(bj);
+    blocks[role->name] = std::move(bj);
   }
   j["blocks"] = std::move(blocks);
   return j;

@@ -82,6 +82,7 @@ bool Scheduler::cycle(const Tick& tick, RunResult& result) noexcept {
   if (r.status != StepStatus::ok) {
     result.faulted = true;
     fault_op_ = r.failed_op;
+    fault_reason_ = r.reason;
     return false;
   }
   return true;
@@ -97,7 +98,9 @@ RunResult Scheduler::run(std::uint64_t cycles, const std::atomic<bool>& stop,
   const auto t = stats_.last_time_ns.load();
   if (result.faulted && fault_op_ >= 0) {
     const auto& op = pipeline_.ops()[static_cast<std::size_t>(fault_op_)];
-    if (result.fault.empty()) result.fault = op.label + ": " + op.block->fault_reason();
+    if (result.fault.empty())
+      result.fault = op.label + ": " + (fault_reason_ ? std::string("health monitor: ") + fault_reason_
+                                                      : std::string(op.block->fault_reason()));
   }
   if (result.faulted) events_.post(t, cycle, "fault", result.fault + " (outputs driven safe)");
   if (on_idle) on_idle();  // final drain

@@ -69,10 +69,12 @@ class ControlService final : public CycleHook {
  private:
   struct Entry {
     std::string block;
+    Block* const* slot = nullptr;  ///< the pointer the RT thread steps (changes on a swap)
     Block* instance = nullptr;
     std::vector<Tunable> tunables;
   };
   const Entry* find(const std::string& block) const;
+  void refresh();
   ControlReply exchange(const ControlRequest& r, const Entry& e, std::size_t index, bool write,
                         double value, std::chrono::milliseconds timeout);
 
@@ -90,6 +92,7 @@ class ControlService final : public CycleHook {
   enum : int { kIdle = 0, kPosted = 1, kBusy = 2, kDone = 3 };
   alignas(64) std::atomic<int> state_{kIdle};
   Block* box_block_ = nullptr;
+  Block* const* box_slot_ = nullptr;
   std::size_t box_index_ = 0;
   bool box_write_ = false;
   double box_value_ = 0.0;

@@ -60,11 +60,24 @@ class Pipeline {
     std::string label;  ///< "glsdc" or "stage.read" / "stage.write"
     bool write_phase = false;
     std::unique_ptr<Histogram> exec_time;
+    int family = -1;  ///< internal: the swappable role this op steps (-1 for io blocks)
   };
 
   struct CycleResult {
     StepStatus status = StepStatus::ok;
-    int failed_op = -1;  ///< index into ops() when status is fault
+    int failed_op = -1;            ///< index into ops() when status is fault
+    const char* reason = nullptr;  ///< set when the health monitor faulted the cycle (else ask the block)
+  };
+
+  /// A health-monitor trip (`health:` section), taken off the RT thread by whoever posts events.
+  struct HealthTrip {
+    std::uint64_t cycle = 0;
+    std::int64_t time_ns = 0;
+    std::string block;            ///< the monitored primary
+    std::string reason;           ///< e.g. "non-finite output"
+    std::string fallback;         ///< the shadow that took over in the same cycle ("" = outputs driven safe)
+    std::string fallback_plugin;
+    std::uint64_t lost = 0;       ///< > 0: this many trips were lost (ring full); other fields empty
   };
 
   /// Load, configure and bind. Returns nullptr when diagnostics is not empty.
@@ -106,16 +119,33 @@ class Pipeline {
   [[nodiscard]] std::optional<SignalRef> signal(const std::string& ref) const;
   /// Every output of every block.
   [[nodiscard]] std::vector<SignalRef> signals() const;
-  /// The block instance named `name` (nullptr if none).
+  /// The instance now running in the role named `name` (nullptr if none). A hot swap,
+  /// promotion or health fallback changes it; the pointer stays valid until the next swap
+  /// of that role completes.
   [[nodiscard]] Block* block(const std::string& name) const;
+  /// Address of the Block* the RT thread steps for `name` (stable for the pipeline's life).
+  /// Dereference it only on the RT thread, or while no RT thread runs.
+  [[nodiscard]] Block* const* block_slot(const std::string& name) const;
+  /// Plugin of the instance now running in role `name`.
+  [[nodiscard]] std::string plugin_of(const std::string& name) const;
+  /// Trips recorded by the RT thread since the last call (single consumer).
+  std::vector<HealthTrip> take_health_trips();
   /// Names of every block, in file order.
   [[nodiscard]] std::vector<std::string> block_names() const;
+  /// Blocks declared with `shadow_of: <primary>`: stepped after their primary on the same
+  /// inputs, outputs in their own storage (issue 5).
+  struct ShadowInfo {
+    std::string name;     ///< the shadow's block name (its outputs are "<name>.<port>")
+    std::string primary;  ///< the block it shadows
+  };
+  [[nodiscard]] std::vector<ShadowInfo> shadows() const;
   /// The resolved pipeline with every derived quantity.
   [[nodiscard]] Json describe() const;
 
   struct Impl;
 
  private:
+  friend class HotSwap;
   Pipeline();
   std::unique_ptr<Impl> impl_;
 };

@@ -128,6 +128,7 @@ class Scheduler {
   RunStats stats_;
   // Fault details written by the RT thread, read after it joins.
   int fault_op_ = -1;
+  const char* fault_reason_ = nullptr;
 };
 
 }  // namespace lode

@@ -1,0 +1,130 @@
+// Hot swap of a running block (issue 5, DESIGN.md §9): replace an estimator while the stage
+// runs, promote a shadow, and report health-monitor fallbacks.
+//
+// Everything that can fail or allocate happens off the RT thread: load the plugin, configure
+// the newcomer with the incumbent's wiring, check that it provides every output of the role
+// with the same size and units, bind it to private (staging) storage, activate it, and map
+// the incumbent's exported state (StateLayout) onto the newcomer's by element name and unit.
+// The RT thread then does, at one cycle boundary (before_cycle):
+//
+//   incumbent.export_state -> mapped copy -> newcomer.import_state   (warm start)
+//   newcomer's ports -> the role's storage; incumbent's -> its staging; op's Block* = newcomer
+//
+// which is a few hundred pointer and double writes. Optionally the newcomer first runs as a
+// shadow for N cycles on the same inputs (warm-started at the first of them) and takes over
+// at the boundary after. At the end of the exchange cycle (after_cycle) the arena is copied
+// once, so that off the RT thread the retired instance can be stepped on exactly that cycle's
+// inputs: the difference between the newcomer's output and what the incumbent would have
+// output is the swap's *jump*, reported with every swap. The retired instance is then
+// deactivated and destroyed off the RT thread. A swap that fails at any step leaves the
+// incumbent running and says why.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "lode/control.hpp"
+#include "lode/event_log.hpp"
+#include "lode/histogram.hpp"
+#include "lode/pipeline.hpp"
+#include "lode/status.hpp"
+#include "lode/telemetry.hpp"
+
+namespace lode {
+
+struct SwapRequest {
+  std::string block;   ///< the role to put the newcomer in (a primary or a shadow)
+  std::string plugin;  ///< "" = the plugin now running in the role
+  /// YAML map of parameters. Same plugin: overrides on the running instance's parameters.
+  /// Another plugin: all of its parameters. `inputs:` may re-wire; by default the role's
+  /// wiring is kept (inputs the newcomer does not declare are dropped and reported).
+  std::string params;
+  std::uint32_t shadow_cycles = 0;  ///< run as a shadow this many cycles before taking over
+  bool warm_start = true;           ///< hand the incumbent's state over
+  std::string client;               ///< who asked (event log)
+};
+
+struct SwapReport {
+  bool ok = false;
+  std::string message;  ///< one line: what happened, or precisely why not
+  std::string block, old_plugin, new_plugin;
+  std::uint64_t cycle = 0;         ///< first cycle whose role outputs came from the newcomer
+  std::int64_t time_ns = 0;
+  std::vector<std::string> state_notes;  ///< mapped / initialised / dropped elements
+  std::size_t mapped = 0, initialised = 0, dropped = 0;
+  std::int64_t rt_cost_ns = 0;     ///< RT-thread time of the exchange (both boundary parts)
+  std::string jump_port;           ///< the role output the jump is measured on (its first)
+  Elements jump_elements;
+  std::vector<double> jump;        ///< newcomer's output - incumbent's counterfactual output
+  std::int64_t prepare_ns = 0;     ///< off-RT preparation time (load, configure, activate)
+};
+
+class HotSwap final : public CycleHook {
+ public:
+  HotSwap(Pipeline& pipeline, EventLog& events);
+  ~HotSwap() override;
+  HotSwap(const HotSwap&) = delete;
+  HotSwap& operator=(const HotSwap&) = delete;
+
+  /// Whether an RT thread is cycling. When not, the exchange is applied on the calling
+  /// thread (no jump is measured and shadow_cycles must be 0).
+  void set_running(bool running) { running_.store(running, std::memory_order_release); }
+
+  /// Off the RT thread; serialised. Prepare, hand over at a cycle boundary, wait, finish.
+  SwapReport swap(const SwapRequest& request,
+                  std::chrono::milliseconds timeout = std::chrono::milliseconds(5000));
+  /// Exchange the instances of `shadow`'s role and its primary's at a cycle boundary (both
+  /// keep running: the old primary becomes the shadow). Re-arms the health fallback.
+  SwapReport promote(const std::string& shadow,
+                     std::chrono::milliseconds timeout = std::chrono::milliseconds(2000));
+  /// ControlService swap handler: kind "swap" (value "promote" + name = shadow promotes;
+  /// name may carry "shadow_cycles=N") and kind "promote".
+  ControlReply handle(const ControlRequest& request);
+
+  /// Off the RT thread: post the health monitor's trips (and swaps it caused) as events.
+  /// Returns how many were posted. Call from the runner's idle loop.
+  std::size_t poll_events();
+
+  /// @name Step by step, for callers that drive the cycles themselves (tests, benchmarks).
+  //@{
+  struct Prepared;
+  /// Prepared is defined in hot_swap.cpp; callers hold it through this handle.
+  struct PreparedDeleter {
+    void operator()(Prepared* p) const noexcept;
+  };
+  using PreparedPtr = std::unique_ptr<Prepared, PreparedDeleter>;
+  Expected<PreparedPtr> prepare(const SwapRequest& request);
+  void post(Prepared& prepared);
+  [[nodiscard]] bool done() const;
+  SwapReport finish(PreparedPtr prepared);
+  //@}
+
+  void before_cycle(const Tick& tick) noexcept override;
+  void after_cycle(const Tick& tick) noexcept override;
+
+  /// RT-thread cost of each exchange (ns), both boundary parts summed.
+  [[nodiscard]] const Histogram& rt_cost() const { return rt_cost_; }
+  [[nodiscard]] std::uint64_t swaps() const { return swaps_; }
+
+ private:
+  SwapReport wait_and_finish(PreparedPtr prepared, std::chrono::milliseconds timeout);
+
+  Pipeline& pipeline_;
+  EventLog& events_;
+  std::mutex mutex_;  ///< serialises swaps; never touched by the RT thread
+  std::atomic<bool> running_{false};
+  Histogram rt_cost_;
+  std::uint64_t swaps_ = 0;
+
+  // Mailbox: idle -> posted (caller) -> warming/installed (RT) -> done (RT) -> idle (caller).
+  enum : int { kIdle = 0, kPosted = 1, kWarming = 2, kInstalled = 3, kDone = 4 };
+  alignas(64) std::atomic<int> state_{kIdle};
+  Prepared* box_ = nullptr;
+};
+
+}  // namespace lode
