@@ -1,0 +1,174 @@
+#include "replay.hpp"
+
+#include <cstring>
+#include <filesystem>
+#include <set>
+
+#include "lode/plugin.hpp"
+#include "lode/record/hdf5_recorder.hpp"
+
+namespace lode::plugins {
+
+namespace {
+
+/// A relative `recording` is taken relative to the pipeline file's folder when the
+/// configuration came from a file (its label is a path that exists), else to the
+/// working directory (`lode replay` always writes absolute paths).
+std::string resolve(const std::string& path, const SourceLocation& where) {
+  namespace fs = std::filesystem;
+  const fs::path p(path);
+  if (p.is_absolute() || where.file.empty()) return path;
+  std::error_code ec;
+  const fs::path config(where.file);
+  if (fs::is_regular_file(config, ec)) return (config.parent_path() / p).lexically_normal().string();
+  return path;
+}
+
+}  // namespace
+
+Status ReplayBoard::configure(ConfigureContext& ctx) {
+  Params& params = ctx.params();
+  const std::string given = params.text("recording");
+  block_ = params.text("block", ctx.block_name());
+  // The command input is optional and of any size, so `inputs: {command: ctrl.out}` of the
+  // board this block replaces stays valid; it is never read.
+  ctx.declare_input(command_, "command", {}, false);
+  if (!params.ok()) return Status::error("invalid parameters");
+  path_ = resolve(given, params.location("recording"));
+
+  auto rec = record::read_recording(path_);
+  if (!rec) {
+    params.fail("recording", "cannot read recording '" + path_ + "': " + rec.error());
+    return Status::error("invalid parameters");
+  }
+  warnings_ = rec->warnings;
+  const std::string prefix = block_ + ".";
+  std::set<std::string> recorded_blocks;
+  std::size_t count = 0;
+  for (const auto& s : rec->series) {
+    const auto dot = s.info.name.find('.');
+    if (dot != std::string::npos) recorded_blocks.insert(s.info.name.substr(0, dot));
+    if (s.info.name.rfind(prefix, 0) == 0) ++count;
+  }
+  if (count == 0) {
+    std::string known;
+    for (const auto& b : recorded_blocks) known += (known.empty() ? "" : ", ") + b;
+    params.fail(params.has("block") ? "block" : "recording",
+                "recording '" + path_ + "' has no series of block '" + block_ + "' (blocks recorded: " +
+                    (known.empty() ? std::string("none") : known) + ")");
+    return Status::error("invalid parameters");
+  }
+
+  // Streams first, ports after: declare_output keeps a reference to each port, so the
+  // vector must not move once they are declared.
+  streams_.clear();
+  streams_.reserve(count);
+  for (auto& s : rec->series) {
+    if (s.info.name.rfind(prefix, 0) != 0) continue;
+    Stream st;
+    st.port = s.info.name.substr(prefix.size());
+    st.kind = s.info.kind;
+    st.width = s.width();
+    for (std::size_t i = 0; i < s.info.names.size(); ++i)
+      st.elements.push_back({s.info.names[i], i < s.info.units.size() ? s.info.units[i] : ""});
+    st.cycle = std::move(s.cycle);
+    st.values = std::move(s.values);
+    streams_.push_back(std::move(st));
+  }
+
+  // Every series must hold the same contiguous run of cycles: a replay cannot invent a
+  // sample the recorder lost.
+  const Stream& first = streams_.front();
+  rows_ = first.cycle.size();
+  first_cycle_ = rows_ > 0 ? first.cycle.front() : 0;
+  bool ok = true;
+  if (rows_ == 0) {
+    params.fail("recording", "series '" + prefix + first.port + "' in '" + path_ + "' has no samples");
+    ok = false;
+  }
+  for (const auto& st : streams_) {
+    const std::string name = prefix + st.port;
+    // A gap first: it is the cause when the lengths differ too.
+    bool gap = false;
+    for (std::size_t k = 0; k < st.cycle.size(); ++k) {
+      if (st.cycle[k] != first_cycle_ + k) {
+        params.fail("recording", "series '" + name + "' in '" + path_ + "' has a gap: row " + std::to_string(k) +
+                                     " is cycle " + std::to_string(st.cycle[k]) + ", expected " +
+                                     std::to_string(first_cycle_ + k) + " (cycles were dropped while recording)");
+        ok = false;
+        gap = true;
+        break;
+      }
+    }
+    if (!gap && st.cycle.size() != rows_) {
+      params.fail("recording", "series '" + name + "' in '" + path_ + "' has " + std::to_string(st.cycle.size()) +
+                                   " samples, '" + prefix + first.port + "' has " + std::to_string(rows_));
+      ok = false;
+    }
+  }
+  for (auto& st : streams_) ctx.declare_output(st.out, st.port, st.elements);
+  return ok ? Status::ok() : Status::error("invalid recording");
+}
+
+Status ReplayBoard::activate() {
+  // Outputs are valid before the first cycle (as io.sim's are): the first recorded row.
+  if (rows_ > 0) copy_row(0);
+  return Status::ok();
+}
+
+void ReplayBoard::copy_row(std::size_t row) noexcept {
+  for (auto& st : streams_)
+    std::memcpy(st.out.data(), st.values.data() + row * st.width, st.width * sizeof(double));
+}
+
+StepStatus ReplayBoard::step(const Tick& tick) noexcept {
+  if (tick.cycle < first_cycle_) return fault("recording has no sample for this cycle");
+  const std::uint64_t row = tick.cycle - first_cycle_;
+  if (row >= rows_) return fault("end of recording");
+  for (const auto& st : streams_)
+    if (st.cycle[row] != tick.cycle) return fault("recording has no sample for this cycle");
+  copy_row(static_cast<std::size_t>(row));
+  return StepStatus::ok;
+}
+
+void ReplayBoard::describe(Json& out) const {
+  out["recording"] = path_;
+  out["block"] = block_;
+  out["rows"] = static_cast<std::uint64_t>(rows_);
+  out["first_cycle"] = first_cycle_;
+  Json series = Json::array();
+  for (const auto& st : streams_) {
+    Json s = Json::object();
+    s["port"] = st.port;
+    s["kind"] = st.kind;
+    s["width"] = static_cast<std::uint64_t>(st.width);
+    series.push(std::move(s));
+  }
+  out["series"] = std::move(series);
+  if (!warnings_.empty()) {
+    Json w = Json::array();
+    for (const auto& text : warnings_) w.push(text);
+    out["warnings"] = std::move(w);
+  }
+}
+
+namespace {
+
+constexpr ParamDoc kParams[] = {
+    {"recording", "text", nullptr,
+     "HDF5 file written by `lode run --record` (relative: to the pipeline file's folder)"},
+    {"block", "text", "this block's name", "the recorded block whose outputs are played back (e.g. stage)"},
+};
+
+constexpr PortDoc kPorts[] = {
+    {"command", "in", "optional, any size: accepted and ignored (the original board's wiring stays valid)"},
+    {"<port>", "out", "one per recorded series <block>.<port>, with its recorded element names and units"},
+};
+
+}  // namespace
+
+}  // namespace lode::plugins
+
+LODE_PLUGIN(lode::plugins::ReplayBoard, "io.replay", lode::PluginKind::io, "0.1.0",
+            "Replays a recorded board's outputs (lode run --record) cycle by cycle, bit for bit",
+            lode::plugins::kParams, lode::plugins::kPorts)

@@ -1,0 +1,63 @@
+// io.replay: plays back the raw inputs of a recording (`lode run --record`) cycle by cycle,
+// so any estimator set sees exactly the samples a recorded run saw (issue 5, `lode replay`).
+//
+// @system
+// name: io.replay
+// input_ports:
+//   command: [any size, any unit, optional]   # accepted and ignored (keeps the original wiring)
+// output_ports:                                # read phase, start of the cycle
+//   <port>: [the recorded elements and units of series "<block>.<port>", in recorded order]
+// @endsystem
+//
+// configure() reads the whole recording once (lode::record::read_recording) and keeps the
+// series of the chosen block; a gap in them (a dropped cycle) or series of different lengths
+// is a configuration error at `recording`. step() copies row tick.cycle - first_cycle of every
+// series into its output after checking the recorded cycle number: the replay is bit-exact
+// (the doubles are copied, never recomputed). Past the last row it faults "end of recording".
+//
+// Threads: configure()/activate()/describe() on the loader thread; step()/write() on the RT
+// thread (memcpy from memory loaded in configure(), no allocation).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "lode/block.hpp"
+
+namespace lode::plugins {
+
+class ReplayBoard final : public Block {
+ public:
+  Status configure(ConfigureContext& ctx) override;
+  Status activate() override;
+  StepStatus step(const Tick& tick) noexcept override;
+  void describe(Json& out) const override;
+
+  /// Rows (cycles) available; the first one is recorded cycle first_cycle().
+  [[nodiscard]] std::size_t rows() const noexcept { return rows_; }
+  [[nodiscard]] std::uint64_t first_cycle() const noexcept { return first_cycle_; }
+
+ private:
+  struct Stream {
+    std::string port;                 ///< output name (the part after "<block>.")
+    std::string kind;                 ///< recorded kind ("raw" for io outputs)
+    std::size_t width = 0;
+    Elements elements;                 ///< recorded names and units
+    std::vector<std::uint64_t> cycle;  ///< recorded cycle of each row
+    std::vector<double> values;        ///< rows x width, row-major, bit for bit from the file
+    OutputPort out;
+  };
+  /// Copy row `row` into every output.
+  void copy_row(std::size_t row) noexcept;
+
+  std::string path_;
+  std::string block_;
+  std::vector<Stream> streams_;
+  std::size_t rows_ = 0;
+  std::uint64_t first_cycle_ = 0;
+  std::vector<std::string> warnings_;  ///< from read_recording (e.g. a crashed writer's file)
+  InputPort command_;
+};
+
+}  // namespace lode::plugins
