@@ -35,7 +35,7 @@ inline const std::vector<std::string>& options_with_value() {
       "--duration", "--clock",   "--summary-json", "--cycles",  "--domain",  "--transport",
       "--peers",    "--interfaces", "--count",     "--wait",    "--topics",  "--name",
       "--pipeline", "--timeout", "--record",       "--wait-subscribers", "--params", "--promote",
-      "--format", "--remote-start", "--speed"};
+      "--format", "--remote-start", "--speed", "--shadow-cycles"};
   return v;
 }
 

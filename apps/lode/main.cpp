@@ -27,6 +27,7 @@
 #include "lode/rt_log.hpp"
 #include "lode/scheduler.hpp"
 #include "log_drain.hpp"
+#include "replay.hpp"
 
 namespace {
 
@@ -41,12 +42,19 @@ const char* kUsage = R"(usage: lode <command> [options]
   run CONFIG [--duration S] [--clock sim|real] [--summary-json FILE] [--quiet]
              [--record FILE.h5] [--domain N] [--no-telemetry] [--wait-subscribers N [--wait S]]
              [--speed X]   (simulated clock: at most X times real time)
+             [--no-local-control]
                        run a pipeline; live status line, summary at the end; publishes the
                        YAML's `telemetry:` topics over Fast DDS; --record writes every output
-                       at full rate (HDF5)
+                       at full rate (HDF5); serves set/swap/record commands on the local
+                       socket $XDG_RUNTIME_DIR/lode/PIPELINE.sock (one run per pipeline)
   check CONFIG         validate a pipeline; every problem with file:line:column
   describe CONFIG      the resolved pipeline as JSON, with every derived quantity
   plugins [--json]     installed plugins with their parameters and ports
+  replay RECORDING [--config OTHER.yaml ...] [--output OUT.h5] [--report R.md|R.json]
+         [--reference block.port] [--estimate block.port ...] [--quiet]
+                       run a recording's raw inputs (lode run --record) through the recorded
+                       configuration (checked bit for bit) and other estimator sets, at full
+                       speed; writes OUT.h5 per configuration and a comparison report
   bench CONFIG [--cycles N]
                        per-block and whole-cycle step cost (simulated clock)
   rtcheck              how fit this host is for real-time runs, with advice
@@ -64,8 +72,11 @@ remote (any machine on the DDS domain; --domain N --transport loopback|shm|udp_l
                        ask the running pipeline to record every output on its own host
   set [PIPELINE/]BLOCK.PARAM [VALUE] | set --list [BLOCK]
                        change (or read) a runtime parameter; the reply says what happened
-  swap [PIPELINE/]BLOCK PLUGIN [--params '{k: v}'] | swap --promote SHADOW
-                       ask the running pipeline to hot-swap an estimator
+  swap [PIPELINE/]BLOCK PLUGIN [--params '{k: v}'] [--shadow-cycles N] [--cold] | swap --promote SHADOW
+                       ask the running pipeline to hot-swap an estimator (state handed
+                       over, one pointer exchange at a cycle boundary) or promote a shadow
+  set/swap/record go to the local socket of a pipeline running on this host, else over DDS
+  (--local or --dds forces one; --pipeline NAME picks one of several local runs)
 
 exit codes: 0 success, 1 runtime fault, 2 invalid configuration
 plugin search path: $LODE_PLUGIN_PATH, <exe>/../lib/lodestone/plugins, install and build folders
@@ -435,6 +446,7 @@ int cmd_run(const Args& args) {
   lode::cli::RunServiceOptions service_options;
   service_options.telemetry = !args.has_flag("--no-telemetry");
   service_options.simulated = clock_name == "sim";
+  service_options.local_control = !args.has_flag("--no-local-control");
   service_options.record_path = args.option("--record");
   if (args.has("--domain")) {
     const auto d = lode::cli::number_option(args, "--domain", 0, 0, 232);
@@ -460,12 +472,6 @@ int cmd_run(const Args& args) {
     return kExitFault;
   }
 
-  if (auto st = p->activate(); !st) {
-    std::fprintf(stderr, "lode: %s\n", st.message().c_str());
-    return kExitFault;
-  }
-  events.post(0, 0, "start", "pipeline '" + p->name() + "' at " + std::to_string(p->rate_hz()) +
-                                 " Hz, " + clock_name + " clock, " + std::to_string(duration) + " s");
   const bool tty = isatty(STDERR_FILENO) != 0;
   auto last_print = std::chrono::steady_clock::now();
   auto status_line = [&](bool final_line) {
@@ -513,19 +519,22 @@ int cmd_run(const Args& args) {
       status_line(false);
     }
   };
-  (*services)->set_running(true);
-  const auto result = sched.run(cycles, lode::cli::stop_requested(), on_idle);
-  (*services)->set_running(false);
-  p->deactivate();  // drives every output safe
-  rec.tap->drain(rec.rows);
-  status_line(true);
-  drain.stop();
+  const auto outcome = lode::cli::execute_run(
+      *p, sched, events, **services, cycles,
+      "pipeline '" + p->name() + "' at " + std::to_string(p->rate_hz()) + " Hz, " + clock_name + " clock, " +
+          std::to_string(duration) + " s",
+      on_idle, [&] {
+        rec.tap->drain(rec.rows);
+        status_line(true);
+        drain.stop();
+      });
+  if (!outcome) {
+    std::fprintf(stderr, "lode: %s\n", outcome.error().c_str());
+    return kExitFault;
+  }
+  const auto& result = *outcome;
   const auto& st = sched.stats();
   const double sim_seconds = static_cast<double>(st.cycles.load()) / p->rate_hz();
-  events.post(st.last_time_ns.load(), st.cycles.load(), "stop",
-              result.faulted ? "fault: " + result.fault
-                             : result.stopped_by_request ? "stopped by signal" : "completed");
-  (*services)->finish();  // publishes the stop event and the last samples
   for (const auto& w : result.warnings) std::fprintf(stderr, "lode: warning: %s\n", w.c_str());
 
   lode::Json summary = lode::Json::object();
@@ -575,6 +584,11 @@ int cmd_run(const Args& args) {
                 static_cast<unsigned long long>(t->find("samples_offered")->as_number()),
                 static_cast<unsigned long long>(t->find("ring_dropped")->as_number()),
                 static_cast<unsigned long long>(t->find("published") ? t->find("published")->as_number() : 0));
+  if (const auto* h = summary.find("hot_swap"); h && h->find("swaps")->as_number() > 0)
+    std::printf("  hot swap: %llu swaps, RT cost per exchange p50 %.0f ns, max %.0f ns\n",
+                static_cast<unsigned long long>(h->find("swaps")->as_number()),
+                h->find("rt_cost_p50_ns") ? h->find("rt_cost_p50_ns")->as_number() : 0.0,
+                h->find("rt_cost_max_ns") ? h->find("rt_cost_max_ns")->as_number() : 0.0);
   if (rec.tap->dropped() > 0)
     std::printf("  WARNING: %llu recorded samples dropped (consumer too slow)\n",
                 static_cast<unsigned long long>(rec.tap->dropped()));
@@ -644,6 +658,15 @@ int cmd_bench(const Args& args) {
 
 int main(int argc, char** argv) {
   spdlog::set_pattern("[%H:%M:%S.%e] [%^%l%$] %v");
+  // `replay` takes repeated options (--config, --estimate): it parses its own arguments.
+  if (argc >= 2 && std::strcmp(argv[1], "replay") == 0) {
+    try {
+      return lode::cli::cmd_replay(argc, argv);
+    } catch (const std::exception& ex) {
+      std::fprintf(stderr, "lode: internal error: %s\n", ex.what());
+      return kExitFault;
+    }
+  }
   const auto args = parse_args(argc, argv);
   if (!args || args->command == "-h" || args->command == "--help" || args->command == "help") {
     std::fputs(kUsage, args ? stdout : stderr);

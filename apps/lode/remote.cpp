@@ -1,6 +1,8 @@
 // The remote side of `lode`: topics, echo, record, set, swap. Each is a DDS participant
 // on the domain and transport given by --domain/--transport/--peers/--interfaces (or
-// LODE_DDS_* in the environment); see `lode --help`.
+// LODE_DDS_* in the environment); see `lode --help`. Commands (set, swap, record
+// --remote-start/--remote-stop) first look for the pipeline's local command socket
+// (local_control.hpp) and use DDS only when there is none (--local / --dds force one way).
 #include <time.h>
 #include <unistd.h>
 
@@ -11,6 +13,7 @@
 #include <csignal>
 #include <cstdio>
 #include <deque>
+#include <functional>
 #include <map>
 #include <mutex>
 #include <set>
@@ -19,6 +22,7 @@
 
 #include "analysis.hpp"
 #include "cli.hpp"
+#include "local_control.hpp"
 #include "lode/dds/client.hpp"
 #include "lode/record/hdf5_recorder.hpp"
 
@@ -495,18 +499,107 @@ std::optional<std::string> target_pipeline(const Args& args, dds::Client& client
   return std::nullopt;
 }
 
-int send(const Args& args, dds::Client& client, const std::string& pipeline, ControlRequest request) {
+/// The same text whichever way the reply came (local socket or DDS).
+int print_reply(const ControlRequest& request, const ControlReply& reply) {
+  if (!reply.value.empty() && request.kind == "list") std::printf("%s", reply.value.c_str());
+  std::printf("%s: %s\n", reply.ok ? "ok" : "error", reply.message.c_str());
+  return reply.ok ? kExitOk : kExitFault;
+}
+
+std::optional<milliseconds> timeout_option(const Args& args) {
   const auto timeout = number_option(args, "--timeout", 5.0, 0.01, 600);
+  if (!timeout) return std::nullopt;
+  return milliseconds(static_cast<long long>(*timeout * 1e3));
+}
+
+std::uint64_t new_request_id() { return static_cast<std::uint64_t>(Clock::now().time_since_epoch().count()); }
+
+int send(const Args& args, dds::Client& client, const std::string& pipeline, ControlRequest request) {
+  const auto timeout = timeout_option(args);
   if (!timeout) return kExitConfig;
-  request.id = static_cast<std::uint64_t>(Clock::now().time_since_epoch().count());
-  auto reply = client.command(pipeline, request, milliseconds(static_cast<long long>(*timeout * 1e3)));
+  request.id = new_request_id();
+  auto reply = client.command(pipeline, request, *timeout);
   if (!reply) {
     std::fprintf(stderr, "lode: %s\n", reply.error().c_str());
     return kExitFault;
   }
-  if (!reply->value.empty() && request.kind == "list") std::printf("%s", reply->value.c_str());
-  std::printf("%s: %s\n", reply->ok ? "ok" : "error", reply->message.c_str());
-  return reply->ok ? kExitOk : kExitFault;
+  return print_reply(request, *reply);
+}
+
+/// A command to a pipeline, over its local socket when there is one, else over DDS.
+///   --local: the socket or nothing; --dds: DDS only (the path used before issue 5).
+///   Which pipeline: --pipeline NAME, the "NAME/" prefix of the target (stripped here), or,
+///   with neither, the one pipeline with a live local socket (several: say which ones).
+/// `make` builds the request from the target without its prefix; nullopt = usage error
+/// (already printed).
+int dispatch(const Args& args, const std::string& role, std::string target,
+             const std::function<std::optional<ControlRequest>(const std::string&)>& make) {
+  const bool force_local = args.has_flag("--local");
+  const bool force_dds = args.has_flag("--dds");
+  if (force_local && force_dds) {
+    std::fprintf(stderr, "lode: --local and --dds exclude each other\n");
+    return kExitConfig;
+  }
+  std::optional<std::string> pipeline;
+  if (args.has("--pipeline")) {
+    pipeline = args.option("--pipeline");
+  } else if (const auto slash = target.find('/'); slash != std::string::npos) {
+    pipeline = target.substr(0, slash);
+    target = target.substr(slash + 1);
+  }
+  if (pipeline && pipeline->empty()) {
+    std::fprintf(stderr, "lode: empty pipeline name\n");
+    return kExitConfig;
+  }
+  auto request = make(target);
+  if (!request) return kExitConfig;
+
+  std::optional<std::string> socket;  // set: go local
+  if (!force_dds) {
+    if (pipeline) {
+      const std::string path = local_control_socket(*pipeline);
+      // --local: even a dead or missing socket, so the error says what is wrong with it.
+      if (force_local || probe_local_socket(path)) socket = path;
+    } else {
+      const auto live = live_local_pipelines();
+      if (live.size() == 1) {
+        socket = live[0].path;
+      } else if (live.size() > 1) {
+        std::fprintf(stderr, "lode: several pipelines run on this host; give --pipeline NAME (or NAME/...), or --dds for a remote one:");
+        for (const auto& p : live) std::fprintf(stderr, " %s (pid %d)", p.pipeline.c_str(), static_cast<int>(p.pid));
+        std::fprintf(stderr, "\n");
+        return kExitFault;
+      } else if (force_local) {
+        std::fprintf(stderr, "lode: no pipeline runs on this host with a local command socket (looked in %s)\n",
+                     local_control_dir().c_str());
+        return kExitFault;
+      }
+    }
+  }
+  if (socket) {
+    const auto timeout = timeout_option(args);
+    if (!timeout) return kExitConfig;
+    request->id = new_request_id();
+    if (request->kind == "record_start" && !request->name.empty() && request->name[0] != '/') {
+      // Same host: a relative file means relative to the caller, not to the runner's cwd.
+      char cwd[4096];
+      if (getcwd(cwd, sizeof cwd)) request->name = std::string(cwd) + "/" + request->name;
+    }
+    char host[256] = "host";
+    gethostname(host, sizeof host - 1);
+    request->client = "lode-" + role + "-" + std::to_string(getpid()) + "@" + host;
+    auto reply = local_send(*socket, *request, *timeout);
+    if (!reply) {
+      std::fprintf(stderr, "lode: %s\n", reply.error().c_str());
+      return kExitFault;
+    }
+    return print_reply(*request, *reply);
+  }
+  auto client = make_client(args, role);
+  if (!client) return kExitConfig;
+  if (!pipeline) pipeline = target_pipeline(args, *client, target);
+  if (!pipeline) return kExitFault;
+  return send(args, *client, *pipeline, *request);
 }
 
 }  // namespace
@@ -516,70 +609,74 @@ int cmd_set(const Args& args) {
   if ((!list && (args.positional.empty() || args.positional.size() > 2)) || (list && args.positional.size() > 1)) {
     std::fprintf(stderr, "usage: lode set [PIPELINE/]BLOCK.PARAM VALUE   (set)\n"
                          "       lode set [PIPELINE/]BLOCK.PARAM         (read the value in force)\n"
-                         "       lode set --list [BLOCK]                 (runtime parameters and ranges)\n");
+                         "       lode set --list [[PIPELINE/]BLOCK]      (runtime parameters and ranges)\n"
+                         "       [--pipeline NAME] [--local | --dds] [--timeout S]\n");
     return kExitConfig;
   }
-  auto client = make_client(args, "set");
-  if (!client) return kExitConfig;
-  std::string target = args.positional.empty() ? "" : args.positional[0];
-  const auto pipeline = target_pipeline(args, *client, target);
-  if (!pipeline) return kExitFault;
-  ControlRequest r;
-  if (list) {
-    r.kind = "list";
-    r.block = target;
-  } else {
-    const auto dot = target.find('.');
-    if (dot == std::string::npos || dot == 0 || dot + 1 == target.size()) {
-      std::fprintf(stderr, "lode: expected BLOCK.PARAM, got '%s'\n", target.c_str());
-      return kExitConfig;
+  const std::string target = args.positional.empty() ? "" : args.positional[0];
+  return dispatch(args, "set", target, [&](const std::string& t) -> std::optional<ControlRequest> {
+    ControlRequest r;
+    if (list) {
+      r.kind = "list";
+      r.block = t;
+      return r;
     }
-    r.block = target.substr(0, dot);
-    r.name = target.substr(dot + 1);
+    const auto dot = t.find('.');
+    if (dot == std::string::npos || dot == 0 || dot + 1 == t.size()) {
+      std::fprintf(stderr, "lode: expected BLOCK.PARAM, got '%s'\n", t.c_str());
+      return std::nullopt;
+    }
+    r.block = t.substr(0, dot);
+    r.name = t.substr(dot + 1);
     r.kind = args.positional.size() == 2 ? "set" : "get";
     if (args.positional.size() == 2) r.value = args.positional[1];
-  }
-  return send(args, *client, *pipeline, r);
+    return r;
+  });
 }
 
 /// Ask the running pipeline to record every output on its own host (record_start/stop).
 int remote_record(const Args& args) {
-  auto client = make_client(args, "record");
-  if (!client) return kExitConfig;
-  std::string target;
-  const auto pipeline = target_pipeline(args, *client, target);
-  if (!pipeline) return kExitFault;
-  ControlRequest r;
-  r.kind = args.has("--remote-start") ? "record_start" : "record_stop";
-  r.name = args.option("--remote-start");
-  return send(args, *client, *pipeline, r);
+  return dispatch(args, "record", "", [&](const std::string&) -> std::optional<ControlRequest> {
+    ControlRequest r;
+    r.kind = args.has("--remote-start") ? "record_start" : "record_stop";
+    r.name = args.option("--remote-start");
+    return r;
+  });
 }
 
 int cmd_swap(const Args& args) {
   const bool promote = args.has("--promote");
   if ((!promote && args.positional.size() != 2) || (promote && !args.positional.empty() && args.positional.size() != 1)) {
-    std::fprintf(stderr, "usage: lode swap [PIPELINE/]BLOCK PLUGIN [--params '{key: value, ...}']\n"
-                         "       lode swap --promote SHADOW [BLOCK]\n");
+    std::fprintf(stderr, "usage: lode swap [PIPELINE/]BLOCK PLUGIN [--params '{key: value, ...}'] [--shadow-cycles N] [--cold]\n"
+                         "       lode swap --promote [PIPELINE/]SHADOW\n"
+                         "       [--pipeline NAME] [--local | --dds] [--timeout S]\n");
     return kExitConfig;
   }
-  auto client = make_client(args, "swap");
-  if (!client) return kExitConfig;
-  std::string target = promote ? args.option("--promote") : args.positional[0];
-  const auto pipeline = target_pipeline(args, *client, target);
-  if (!pipeline) return kExitFault;
-  ControlRequest r;
-  r.kind = "swap";
-  if (promote) {
-    r.name = target;  // the shadow to promote
-    r.block = args.positional.empty() ? "" : args.positional[0];
-    r.plugin = "";
-    r.value = "promote";
-  } else {
-    r.block = target;
-    r.plugin = args.positional[1];
-    r.value = args.option("--params");
+  const std::string target = promote ? args.option("--promote") : args.positional[0];
+  // Swap options travel in the request's name field: "shadow_cycles=N;warm_start=false".
+  std::string swap_options;
+  if (args.has("--shadow-cycles")) {
+    const auto n = number_option(args, "--shadow-cycles", 0, 0, 1e7);
+    if (!n) return kExitConfig;
+    swap_options = "shadow_cycles=" + std::to_string(static_cast<long long>(*n));
   }
-  return send(args, *client, *pipeline, r);
+  if (args.has_flag("--cold")) swap_options += std::string(swap_options.empty() ? "" : ";") + "warm_start=false";
+  return dispatch(args, "swap", target, [&](const std::string& t) -> std::optional<ControlRequest> {
+    ControlRequest r;
+    r.kind = "swap";
+    if (promote) {
+      r.name = t;  // the shadow to promote
+      r.block = args.positional.empty() ? "" : args.positional[0];
+      r.plugin = "";
+      r.value = "promote";
+    } else {
+      r.block = t;
+      r.plugin = args.positional[1];
+      r.value = args.option("--params");
+      r.name = swap_options;
+    }
+    return r;
+  });
 }
 
 }  // namespace lode::cli

@@ -2,14 +2,20 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <thread>
 
+#include "cli.hpp"
+#include "local_control.hpp"
 #include "lode/control.hpp"
+#include "lode/hot_swap.hpp"
+#include "lode/plugin.hpp"
 #include "lode/dds/bridge.hpp"
 #include "lode/record/hdf5_recorder.hpp"
 #include "lode/rt_log.hpp"
@@ -71,7 +77,11 @@ struct RunServices::Impl {
   std::unique_ptr<OutputDigest> digest;
   std::unique_ptr<RecordTap> record_tap;
   std::unique_ptr<TelemetryTap> telemetry_tap;
+  std::unique_ptr<HotSwap> hot_swap;
   std::unique_ptr<ControlService> control;
+  std::unique_ptr<LocalControlServer> local_server;
+  LocalControlStats local_stats;  // kept after the server stops, for the summary
+  std::string local_socket;
   std::unique_ptr<dds::TelemetryBridge> bridge;
 
   // The recorder is used by on_idle (main thread) and by the command thread: one mutex.
@@ -88,6 +98,34 @@ struct RunServices::Impl {
   std::chrono::steady_clock::time_point last_progress = std::chrono::steady_clock::now();
   bool stall_reported = false;
 
+  // What produced a recording, computed once before the run (describe() reads every
+  // block, which must not race with the RT thread once it runs).
+  std::vector<std::string> io_blocks;  // their outputs are the raw inputs replay plays back
+  std::string plugins_json;            // plugin name -> .so path
+  std::string blocks_json;             // block -> plugin name
+  std::atomic<bool> running{false};
+  bool recording_from_start = false;   // opened before the first cycle
+  std::optional<std::uint64_t> first_cycle;
+
+  void describe_sources() {
+    const Json d = pipeline->describe();
+    Json plugins = Json::object();
+    Json blocks = Json::object();
+    if (const Json* bj = d.find("blocks")) {
+      for (const auto& [name, b] : bj->members()) {
+        const Json* plugin = b.find("plugin");
+        const Json* file = b.find("plugin_file");
+        const Json* kind = b.find("kind");
+        if (!plugin) continue;
+        blocks[name] = plugin->as_string();
+        if (file) plugins[plugin->as_string()] = file->as_string();
+        if (kind && kind->as_string() == to_string(PluginKind::io)) io_blocks.push_back(name);
+      }
+    }
+    plugins_json = plugins.dump(-1);
+    blocks_json = blocks.dump(-1);
+  }
+
   Status open_recording(const std::string& path) {
     if (recorder) return Status::error("already recording to " + recording_path + " (record_stop first)");
     auto r = record::Recorder::create(path, "lode run");
@@ -98,11 +136,15 @@ struct RunServices::Impl {
     recorder->set_attribute("config", pipeline->source_text());
     recorder->set_attribute("host", hostname());
     recorder->set_attribute("rate_hz", pipeline->rate_hz());
+    // The exact resolved configuration is the YAML text above plus the plugin files.
+    recorder->set_attribute("lode_plugins", plugins_json);
+    recorder->set_attribute("lode_blocks", blocks_json);
     series.clear();
     for (const auto& s : record_tap->tap().signals()) {
       record::SeriesInfo info;
       info.name = s.name();
-      info.kind = "signal";
+      const bool raw = std::find(io_blocks.begin(), io_blocks.end(), s.block) != io_blocks.end();
+      info.kind = raw ? "raw" : "signal";
       for (const auto& e : *s.elements) {
         info.names.push_back(e.name);
         info.units.push_back(e.unit);
@@ -122,6 +164,8 @@ struct RunServices::Impl {
     rows.clear();
     recording_path = path;
     recorded_cycles = 0;
+    first_cycle.reset();
+    recording_from_start = !running.load();
     event_cursor = 0;
     record_tap->open().store(true, std::memory_order_release);
     return {};
@@ -137,6 +181,7 @@ struct RunServices::Impl {
     for (std::size_t k = 0; k + stride <= rows.size(); k += stride) {
       const auto cycle = static_cast<std::uint64_t>(rows[k]);
       const auto stamp = static_cast<std::int64_t>(std::llround(rows[k + 1] * 1e9));
+      if (!first_cycle) first_cycle = cycle;
       for (std::size_t i = 0; i < series.size(); ++i)
         recorder->append(series[i], cycle, stamp, 0, rows.data() + k + tap.column(i));
       ++recorded_cycles;
@@ -148,7 +193,24 @@ struct RunServices::Impl {
     if (!recorder) return Status::error("not recording");
     record_tap->open().store(false, std::memory_order_release);
     drain_recording();
-    recorder->set_attribute("dropped_cycles", static_cast<double>(record_tap->tap().dropped()));
+    const auto dropped = record_tap->tap().dropped();
+    recorder->set_attribute("dropped_cycles", static_cast<double>(dropped));
+    recorder->set_attribute("cycles", static_cast<double>(recorded_cycles));
+    recorder->set_attribute("first_cycle", first_cycle ? static_cast<double>(*first_cycle) : 0.0);
+    // The digest covers every cycle the pipeline ran: it describes this file only when the
+    // recording saw all of them (opened before the first cycle, closed after the last, none
+    // dropped). Otherwise say why there is none rather than claim a wrong one.
+    const bool whole_run = recording_from_start && !running.load() && dropped == 0;
+    if (whole_run) {
+      recorder->set_attribute("output_digest", digest_text());
+    } else {
+      recorder->set_attribute("recording_partial",
+                              !recording_from_start ? "recording started mid-run (first cycle " +
+                                                          std::to_string(first_cycle.value_or(0)) +
+                                                          "): no output digest"
+                              : running.load()      ? std::string("recording stopped mid-run: no output digest")
+                                                    : "cycles dropped by the recorder: no output digest");
+    }
     auto st = recorder->close();
     Json j = Json::object();
     j["file"] = recording_path;
@@ -157,6 +219,12 @@ struct RunServices::Impl {
     finished_recordings.push(std::move(j));
     recorder.reset();
     return st;
+  }
+
+  [[nodiscard]] std::string digest_text() const {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(digest->value()));
+    return buf;
   }
 
   ControlReply handle_record(const ControlRequest& r) {
@@ -205,23 +273,35 @@ Expected<std::unique_ptr<RunServices>> RunServices::start(Pipeline& pipeline, Sc
   im.stats = &scheduler.stats();
   im.options = options;
   im.spec = pipeline.telemetry();
+  im.describe_sources();
   if (options.domain) im.spec.domain = *options.domain;
   const bool telemetry = im.spec.enabled && options.telemetry;
 
-  // Order on the RT thread: commands before the cycle; taps and digest after it.
-  if (telemetry && im.spec.commands.enabled) {
-    im.control = std::make_unique<ControlService>(pipeline, events);
-    scheduler.add_hook(im.control.get());
-  }
+  // Order on the RT thread: swaps and commands before the cycle; taps and digest after it.
+  // The command service always exists: the local socket reaches it without Fast DDS, the
+  // DDS bridge only when the YAML enables telemetry commands.
+  im.hot_swap = std::make_unique<HotSwap>(pipeline, events);
+  scheduler.add_hook(im.hot_swap.get());
+  im.control = std::make_unique<ControlService>(pipeline, events);
+  scheduler.add_hook(im.control.get());
+  im.control->set_swap_handler([hs = im.hot_swap.get()](const ControlRequest& r) { return hs->handle(r); });
   im.digest = std::make_unique<OutputDigest>(pipeline.signals());
   scheduler.add_hook(im.digest.get());
   im.record_tap = std::make_unique<RecordTap>(pipeline.signals());
   scheduler.add_hook(im.record_tap.get());
-  if (im.control)
-    im.control->set_record_handler([&im](const ControlRequest& r) { return im.handle_record(r); });
+  im.control->set_record_handler([&im](const ControlRequest& r) { return im.handle_record(r); });
   if (!options.record_path.empty()) {
     std::lock_guard lock(im.record_mutex);
     if (auto st = im.open_recording(options.record_path); !st) return st;
+  }
+  if (options.local_control) {
+    auto server = LocalControlServer::start(*im.control, pipeline.name());
+    if (!server) return Status::error("local control: " + server.error());
+    im.local_server = std::move(*server);
+    im.local_socket = im.local_server->path();
+    if (im.local_server->replaced_stale())
+      events.post(0, 0, "warning", "local control: replaced a stale socket left by a run that ended abnormally: " +
+                                       im.local_socket);
   }
   if (telemetry) {
     im.telemetry_tap = std::make_unique<TelemetryTap>(im.spec, pipeline.rate_hz());
@@ -232,7 +312,7 @@ Expected<std::unique_ptr<RunServices>> RunServices::start(Pipeline& pipeline, Sc
     po.transport = im.spec.transport;
     po.security = im.spec.security;
     auto bridge = dds::TelemetryBridge::start(pipeline, im.spec, *im.telemetry_tap, scheduler.stats(), events,
-                                              im.control.get(), po);
+                                              im.spec.commands.enabled ? im.control.get() : nullptr, po);
     if (!bridge) return Status::error("telemetry: " + bridge.error());
     im.bridge = std::move(*bridge);
   }
@@ -252,11 +332,14 @@ bool RunServices::wait_for_subscribers() {
 }
 
 void RunServices::set_running(bool running) {
-  if (impl_->control) impl_->control->set_running(running);
+  impl_->running.store(running);
+  impl_->hot_swap->set_running(running);
+  impl_->control->set_running(running);
 }
 
 void RunServices::on_idle() {
   Impl& im = *impl_;
+  im.hot_swap->poll_events();  // health-monitor trips and fallbacks become events (recorded, published)
   {
     std::lock_guard lock(im.record_mutex);
     im.drain_recording();
@@ -293,6 +376,12 @@ void RunServices::on_idle() {
 
 void RunServices::finish() {
   Impl& im = *impl_;
+  if (im.local_server) {
+    im.local_server->stop();  // no command arrives after the stop event
+    im.local_stats = im.local_server->stats();
+    im.local_server.reset();
+  }
+  if (im.hot_swap) im.hot_swap->poll_events();
   {
     std::lock_guard lock(im.record_mutex);
     if (im.recorder) {
@@ -329,10 +418,26 @@ void RunServices::finish() {
   }
 }
 
-std::string RunServices::output_digest() const {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(impl_->digest->value()));
-  return buf;
+std::string RunServices::output_digest() const { return impl_->digest_text(); }
+
+const std::vector<std::string>& RunServices::io_blocks() const { return impl_->io_blocks; }
+
+Expected<RunResult> execute_run(Pipeline& pipeline, Scheduler& scheduler, EventLog& events, RunServices& services,
+                                std::uint64_t cycles, const std::string& start_text,
+                                const std::function<void()>& on_idle, const std::function<void()>& after_run) {
+  if (auto st = pipeline.activate(); !st) return st;
+  events.post(0, 0, "start", start_text);
+  services.set_running(true);
+  auto result = scheduler.run(cycles, stop_requested(), on_idle);
+  services.set_running(false);
+  pipeline.deactivate();  // drives every output safe
+  if (after_run) after_run();
+  const auto& st = scheduler.stats();
+  events.post(st.last_time_ns.load(), st.cycles.load(), "stop",
+              result.faulted ? "fault: " + result.fault
+                             : result.stopped_by_request ? "stopped by signal" : "completed");
+  services.finish();  // publishes the stop event and the last samples, closes the recording
+  return result;
 }
 
 Json RunServices::summary() const {
@@ -357,6 +462,26 @@ Json RunServices::summary() const {
     j["telemetry"] = std::move(t);
   }
   j["recordings"] = im.finished_recordings;
+  if (!im.local_socket.empty()) {
+    const LocalControlStats ls = im.local_server ? im.local_server->stats() : im.local_stats;
+    Json l = Json::object();
+    l["socket"] = im.local_socket;
+    l["connections"] = ls.connections;
+    l["requests"] = ls.requests;
+    l["malformed"] = ls.malformed;
+    l["refused_clients"] = ls.refused_clients;
+    j["local_control"] = std::move(l);
+  }
+  if (im.hot_swap) {
+    Json h = Json::object();
+    h["swaps"] = im.hot_swap->swaps();
+    const auto& c = im.hot_swap->rt_cost();
+    if (c.count() > 0) {
+      h["rt_cost_p50_ns"] = static_cast<double>(c.percentile(0.5));
+      h["rt_cost_max_ns"] = static_cast<double>(c.max());
+    }
+    j["hot_swap"] = std::move(h);
+  }
   return j;
 }
 

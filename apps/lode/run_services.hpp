@@ -1,12 +1,16 @@
-// What `lode run` adds around the scheduler besides the status line: telemetry over
-// Fast DDS with remote commands, the local recorder (--record, and record_start/record_stop
-// commands), and an output digest that proves two runs bit-identical.
+// What `lode run` adds around the scheduler besides the status line: the command service
+// (parameters, hot swap, promotion, recording) reachable over the local socket and over
+// Fast DDS, the health monitor's events, telemetry, the local recorder (--record, and
+// record_start/record_stop commands), and an output digest that proves two runs
+// bit-identical.
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "lode/event_log.hpp"
 #include "lode/json.hpp"
@@ -24,6 +28,9 @@ struct RunServiceOptions {
   int wait_subscribers = 0;          ///< --wait-subscribers N: start cycling once N readers matched
   double wait_s = 10.0;
   bool simulated = true;
+  /// Serve commands on the local socket ($XDG_RUNTIME_DIR/lode/PIPELINE.sock). A second run
+  /// of the same pipeline on this host is refused while the first one holds it.
+  bool local_control = true;
 };
 
 class RunServices {
@@ -49,6 +56,8 @@ class RunServices {
   [[nodiscard]] bool dds_stuck() const { return dds_stuck_; }
   /// 64-bit FNV-1a over the bits of every output of every cycle, as 16 hex digits.
   [[nodiscard]] std::string output_digest() const;
+  /// Blocks whose plugin is of kind io (their outputs are recorded as kind "raw").
+  [[nodiscard]] const std::vector<std::string>& io_blocks() const;
 
   struct Impl;
 
@@ -58,5 +67,14 @@ class RunServices {
   dds::BridgeStats last_bridge_stats_;
   bool dds_stuck_ = false;
 };
+
+/// The run itself, shared by `lode run` and `lode replay`: activate, the "start" event
+/// (`start_text`), set_running, the cycles, deactivate (every output driven safe),
+/// `after_run` (final drains, status line), the "stop" event, then services.finish() (the
+/// recording is closed with its digest). An activation failure is returned as an error;
+/// a fault during the run is in the RunResult.
+Expected<RunResult> execute_run(Pipeline& pipeline, Scheduler& scheduler, EventLog& events, RunServices& services,
+                                std::uint64_t cycles, const std::string& start_text,
+                                const std::function<void()>& on_idle, const std::function<void()>& after_run = {});
 
 }  // namespace lode::cli

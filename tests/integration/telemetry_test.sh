@@ -80,7 +80,7 @@ commands)
   grep -q "allow_participants: \[console\]" "$TMP/p.yaml" || { echo "FAIL: test setup (sed)"; exit 1; }
   "$LODE" run "$TMP/p.yaml" --clock real --duration 60 --summary-json "$TMP/run.json" >"$TMP/run.out" 2>&1 &
   PIDS+=($!); RUN=$!
-  L="$LODE"; D=(--domain "$DOMAIN" --wait 20 --timeout 10)
+  L="$LODE"; D=(--dds --domain "$DOMAIN" --wait 20 --timeout 10)
   "$L" set --list "${D[@]}" --name console >"$TMP/list.out" 2>&1; check_rc "list runtime parameters" 0 $?
   param=observer.d
   contains "list shows observer.d with its range" "$TMP/list.out" "^observer\.d \[0, 1\]"
