@@ -585,10 +585,12 @@ int cmd_run(const Args& args) {
                 static_cast<unsigned long long>(t->find("ring_dropped")->as_number()),
                 static_cast<unsigned long long>(t->find("published") ? t->find("published")->as_number() : 0));
   if (const auto* h = summary.find("hot_swap"); h && h->find("swaps")->as_number() > 0)
-    std::printf("  hot swap: %llu swaps, RT cost per exchange p50 %.0f ns, max %.0f ns\n",
+    std::printf("  hot swap: %llu swaps, RT cost per exchange p50 %.0f ns, max %.0f ns; overruns in a swap cycle "
+                "(or the next) %llu\n",
                 static_cast<unsigned long long>(h->find("swaps")->as_number()),
                 h->find("rt_cost_p50_ns") ? h->find("rt_cost_p50_ns")->as_number() : 0.0,
-                h->find("rt_cost_max_ns") ? h->find("rt_cost_max_ns")->as_number() : 0.0);
+                h->find("rt_cost_max_ns") ? h->find("rt_cost_max_ns")->as_number() : 0.0,
+                static_cast<unsigned long long>(h->find("overruns_at_swap_cycles")->as_number()));
   if (rec.tap->dropped() > 0)
     std::printf("  WARNING: %llu recorded samples dropped (consumer too slow)\n",
                 static_cast<unsigned long long>(rec.tap->dropped()));

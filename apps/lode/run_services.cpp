@@ -480,6 +480,24 @@ Json RunServices::summary() const {
       h["rt_cost_p50_ns"] = static_cast<double>(c.percentile(0.5));
       h["rt_cost_max_ns"] = static_cast<double>(c.max());
     }
+    // Did a swap cause an overrun? The exchange runs in before_cycle of its cycle and the
+    // jump snapshot in after_cycle, so an overrun it caused is in that cycle (or, through a
+    // late start, the next). Overruns are attributed from the scheduler's overrun log.
+    if (im.stats && im.stats->overruns.load() > 0) {
+      const auto overrun_cycles = im.stats->logged_overruns();
+      const auto& swap_cycles = im.hot_swap->swap_cycles();
+      std::uint64_t at_swaps = 0;
+      for (std::uint64_t o : overrun_cycles)
+        for (std::uint64_t swap_cycle : swap_cycles)
+          if (o == swap_cycle || o == swap_cycle + 1) {
+            ++at_swaps;
+            break;
+          }
+      h["overruns_at_swap_cycles"] = at_swaps;
+      h["overruns_attributed"] = static_cast<std::uint64_t>(overrun_cycles.size());
+    } else {
+      h["overruns_at_swap_cycles"] = std::uint64_t{0};
+    }
     j["hot_swap"] = std::move(h);
   }
   return j;

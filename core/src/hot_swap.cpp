@@ -95,7 +95,11 @@ struct HotSwap::Prepared {
   double dt_s = 0.0;
   std::int64_t cost_ns = 0;
   BlockEntry* retired = nullptr;
-  std::vector<double> snapshot;       // the arena at the end of the exchange cycle
+  std::vector<double> snapshot;       // arena-shaped: the spans below, at the end of the exchange cycle
+  struct Span {
+    std::size_t offset = 0, size = 0;
+  };
+  std::vector<Span> snapshot_spans;   // the retired instance's inputs and the role's first output
   std::int64_t prepared_at_ns = 0;
 };
 
@@ -318,7 +322,19 @@ Expected<HotSwap::PreparedPtr> HotSwap::prepare(const SwapRequest& request) {
         : from.empty()      ? "no state handover: " + incumbent->plugin_name + " exports no state; " + plugin + " starts from its initial state"
                             : "no state handover: " + plugin + " takes no state; it starts from its initial state");
   }
+  // The jump is measured by stepping the retired instance on the exchange cycle's inputs off
+  // the RT thread: the RT thread keeps just those (and the role's first output), not the arena.
   p->snapshot.assign(im.arena.size(), 0.0);
+  for (const auto& w : incumbent->wiring) {
+    const BlockEntry* src = im.find_block(w.src_block);
+    const DeclaredOutput* out = src ? src->output(w.src_port) : nullptr;
+    if (out) p->snapshot_spans.push_back({out->offset, out->elements.size()});
+  }
+  for (const auto& o : role->outputs)
+    if (!o.synthetic) {
+      p->snapshot_spans.push_back({o.offset, o.elements.size()});
+      break;
+    }
   p->record = std::move(record);
   p->report.prepare_ns = monotonic_ns() - start;
   return p;
@@ -406,8 +422,9 @@ void HotSwap::after_cycle(const Tick& /*tick*/) noexcept {
   if (state_.load(std::memory_order_acquire) != kInstalled) return;
   Prepared& p = *box_;
   const std::int64_t t0 = monotonic_ns();
-  const auto& arena = pipeline_.impl_->arena;
-  std::memcpy(p.snapshot.data(), arena.data(), arena.size() * sizeof(double));
+  const double* arena = pipeline_.impl_->arena.data();
+  for (const auto& span : p.snapshot_spans)
+    std::memcpy(p.snapshot.data() + span.offset, arena + span.offset, span.size * sizeof(double));
   p.cost_ns += monotonic_ns() - t0;
   rt_cost_.record(p.cost_ns);
   state_.store(kDone, std::memory_order_release);
@@ -434,6 +451,7 @@ SwapReport HotSwap::finish(PreparedPtr prepared) {
   }
   if (p.kind == Prepared::Kind::promote) {
     ++swaps_;
+    swap_cycles_.push_back(p.cycle);
     report.ok = true;
     report.message = "promoted " + report.block + " at cycle " + std::to_string(p.cycle) + ": " +
                      p.family->primary->name + " now runs " + pipeline_.plugin_of(p.family->primary->name) + ", " +
@@ -487,6 +505,7 @@ SwapReport HotSwap::finish(PreparedPtr prepared) {
   }
   im.pool.push_back(std::move(p.record));
   ++swaps_;
+  swap_cycles_.push_back(p.cycle);
 
   report.ok = true;
   std::string jump_text;

@@ -88,6 +88,14 @@ bool Scheduler::cycle(const Tick& tick, RunResult& result) noexcept {
   return true;
 }
 
+std::vector<std::uint64_t> RunStats::logged_overruns() const {
+  const std::uint64_t n = overruns.load(std::memory_order_acquire);
+  std::vector<std::uint64_t> out;
+  for (std::uint64_t i = n > kOverrunLog ? n - kOverrunLog : 0; i < n; ++i)
+    out.push_back(overrun_cycles[i % kOverrunLog].load(std::memory_order_relaxed));
+  return out;
+}
+
 RunResult Scheduler::run(std::uint64_t cycles, const std::atomic<bool>& stop,
                          const std::function<void()>& on_idle) {
   const auto wall_start = std::chrono::steady_clock::now();
@@ -158,6 +166,7 @@ RunResult Scheduler::run_real(std::uint64_t cycles, const std::atomic<bool>& sto
       deadline += period;
       const std::int64_t now = clock_.now_ns();
       if (now > deadline) {  // this cycle ran into the next period
+        stats_.overrun_cycles[overruns % RunStats::kOverrunLog].store(k, std::memory_order_relaxed);
         ++overruns;
         stats_.overruns.store(overruns, std::memory_order_relaxed);
         if (rts.overrun_policy == OverrunPolicy::stop ||

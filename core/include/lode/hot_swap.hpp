@@ -110,6 +110,8 @@ class HotSwap final : public CycleHook {
   /// RT-thread cost of each exchange (ns), both boundary parts summed.
   [[nodiscard]] const Histogram& rt_cost() const { return rt_cost_; }
   [[nodiscard]] std::uint64_t swaps() const { return swaps_; }
+  /// The exchange cycle of every completed swap and promotion (read when no swap is under way).
+  [[nodiscard]] const std::vector<std::uint64_t>& swap_cycles() const { return swap_cycles_; }
 
  private:
   SwapReport wait_and_finish(PreparedPtr prepared, std::chrono::milliseconds timeout);
@@ -120,6 +122,7 @@ class HotSwap final : public CycleHook {
   std::atomic<bool> running_{false};
   Histogram rt_cost_;
   std::uint64_t swaps_ = 0;
+  std::vector<std::uint64_t> swap_cycles_;
 
   // Mailbox: idle -> posted (caller) -> warming/installed (RT) -> done (RT) -> idle (caller).
   enum : int { kIdle = 0, kPosted = 1, kWarming = 2, kInstalled = 3, kDone = 4 };

@@ -8,6 +8,7 @@
 // CPU allows, with scheduled times advancing exactly one period per cycle.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <functional>
@@ -82,6 +83,12 @@ struct RunStats {
   std::atomic<std::uint64_t> overruns{0};       ///< cycles that ended after the next deadline
   std::atomic<std::uint64_t> missed_periods{0};  ///< periods skipped under overrun_policy skip
   std::atomic<std::int64_t> last_time_ns{0};
+  /// Cycle numbers of the last kOverrunLog overruns (a ring indexed by overrun count - 1), so
+  /// that overruns can be attributed afterwards, e.g. to hot-swap exchange cycles.
+  static constexpr std::size_t kOverrunLog = 4096;
+  std::array<std::atomic<std::uint64_t>, kOverrunLog> overrun_cycles{};
+  /// The logged overrun cycles, oldest first (at most kOverrunLog). Not for the RT thread.
+  [[nodiscard]] std::vector<std::uint64_t> logged_overruns() const;
   Histogram wake_latency;  ///< actual wake-up minus deadline (real clock only)
   Histogram cycle_time;    ///< whole cycle execution time
 };
