@@ -26,6 +26,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -71,19 +72,22 @@ struct Rig {
     activated = static_cast<bool>(pipeline->activate());
     swapper->set_running(true);
   }
-  lode::Pipeline::CycleResult step() {
+  lode::Pipeline::CycleResult step(const std::function<void()>& at_cycle_end = {}) {
     lode::Tick t;
     t.cycle = cycle;
     t.time_ns = static_cast<std::int64_t>(cycle) * pipeline->period_ns();
     t.dt_s = 1.0 / pipeline->rate_hz();
     swapper->before_cycle(t);
     const auto r = pipeline->run_cycle(t, true);
+    if (at_cycle_end) at_cycle_end();
     swapper->after_cycle(t);
     ++cycle;
     return r;
   }
   /// A swap as the runner does it, with the allocations of the cycles in between counted.
-  lode::SwapReport swap(const lode::SwapRequest& request) {
+  /// `at_boundary` runs at the end of every cycle (before the after_cycle hooks, where the
+  /// exchange happens) until the swap is done.
+  lode::SwapReport swap(const lode::SwapRequest& request, const std::function<void()>& at_boundary = {}) {
     auto prepared = swapper->prepare(request);
     if (!prepared) {
       lode::SwapReport r;
@@ -92,7 +96,7 @@ struct Rig {
     }
     swapper->post(**prepared);
     const auto before = lode::testing::allocation_count();
-    while (!swapper->done()) last = step();
+    while (!swapper->done()) last = step(at_boundary);
     rt_allocations += lode::testing::allocation_count() - before;
     return swapper->finish(std::move(*prepared));
   }
@@ -179,15 +183,16 @@ TEST(HotSwap, ThousandSwapsKalmanHybridAt5kHzKeepTheLoopAndBoundTheJump) {
   double max_track_error = 0.0;
   for (int s = 0; s < 1000; ++s) {
     const bool to_hybrid = s % 2 == 0;
-    // The incumbent's prior now (the exchange happens at the next boundary): gives K_old.
-    lode::Block* incumbent = rig.pipeline->block("kf");
+    // The incumbent's prior at the exchange boundary gives K_old.
     std::vector<double> x(9), P(81);
-    incumbent->export_state(x.data(), P.data());
     lode::SwapRequest req;
     req.block = "kf";
     req.plugin = to_hybrid ? "estimator.hybrid_h2hinf" : "estimator.kalman";
     req.params = to_hybrid ? kHybridParams : kKalmanParams;
-    const lode::SwapReport r = rig.swap(req);
+    lode::Block* incumbent = rig.pipeline->block("kf");
+    const lode::SwapReport r = rig.swap(req, [&] {
+      if (rig.pipeline->block("kf") == incumbent) incumbent->export_state(x.data(), P.data());
+    });
     ASSERT_TRUE(r.ok) << r.message;
     ASSERT_EQ(r.jump.size(), 3u) << r.message;
     ASSERT_EQ(r.mapped, 9u) << r.message;

@@ -5,16 +5,19 @@
 // the newcomer with the incumbent's wiring, check that it provides every output of the role
 // with the same size and units, bind it to private (staging) storage, activate it, and map
 // the incumbent's exported state (StateLayout) onto the newcomer's by element name and unit.
-// The RT thread then does, at one cycle boundary (before_cycle):
+// The RT thread prefetches, at the start of a cycle, every cache line the exchange will touch
+// (the preparing thread wrote them on another core: fetched on demand they would cost a miss
+// each, ~2.5 us in all on the build VM), and at the end of that cycle (after_cycle, the
+// boundary before the next; nothing runs in between) does:
 //
 //   incumbent.export_state -> mapped copy -> newcomer.import_state   (warm start)
 //   newcomer's ports -> the role's storage; incumbent's -> its staging; op's Block* = newcomer
 //
 // which is a few hundred pointer and double writes. Optionally the newcomer first runs as a
 // shadow for N cycles on the same inputs (warm-started at the first of them) and takes over
-// at the boundary after. At the end of the exchange cycle (after_cycle) the arena is copied
-// once, so that off the RT thread the retired instance can be stepped on exactly that cycle's
-// inputs: the difference between the newcomer's output and what the incumbent would have
+// at the boundary after. At the end of the exchange cycle (after_cycle) the retired
+// instance's inputs are copied once, so that off the RT thread it can be stepped on exactly
+// that cycle's inputs: the difference between the newcomer's output and what the incumbent would have
 // output is the swap's *jump*, reported with every swap. The retired instance is then
 // deactivated and destroyed off the RT thread. A swap that fails at any step leaves the
 // incumbent running and says why.
@@ -115,6 +118,9 @@ class HotSwap final : public CycleHook {
 
  private:
   SwapReport wait_and_finish(PreparedPtr prepared, std::chrono::milliseconds timeout);
+  static void prefetch(Prepared& p) noexcept;
+  /// RT thread: the newcomer takes the role from `boundary` on.
+  void install(Prepared& p, const Tick& boundary, std::int64_t t0) noexcept;
 
   Pipeline& pipeline_;
   EventLog& events_;
@@ -124,8 +130,10 @@ class HotSwap final : public CycleHook {
   std::uint64_t swaps_ = 0;
   std::vector<std::uint64_t> swap_cycles_;
 
-  // Mailbox: idle -> posted (caller) -> warming/installed (RT) -> done (RT) -> idle (caller).
-  enum : int { kIdle = 0, kPosted = 1, kWarming = 2, kInstalled = 3, kDone = 4 };
+  // Mailbox: idle -> posted (caller) -> prefetched (RT, cycle start) -> warming/installed (RT, cycle end)
+  // -> done (RT) -> idle (caller). The RT thread claims a posted or prefetched request by
+  // compare-exchange (to `claimed`) before touching it, so the caller can withdraw it safely.
+  enum : int { kIdle = 0, kPosted = 1, kPrefetched = 2, kClaimed = 3, kWarming = 4, kInstalled = 5, kDone = 6 };
   alignas(64) std::atomic<int> state_{kIdle};
   Prepared* box_ = nullptr;
 };
