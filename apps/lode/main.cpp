@@ -439,7 +439,7 @@ int cmd_run(const Args& args) {
 
   std::unique_ptr<lode::Clock> clock;
   if (clock_name == "sim") clock = std::make_unique<lode::SimulatedClock>();
-  else clock = std::make_unique<lode::RealClock>();
+  else clock = std::make_unique<lode::RealClock>(p->realtime().spin_us * 1000);
   lode::Scheduler sched(*p, *clock, events);
   sched.add_tap(rec.tap.get());
 

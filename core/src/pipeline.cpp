@@ -297,6 +297,9 @@ void Pipeline::Impl::parse_realtime(const YAML::Node& rt) {
   const auto max_over = p.integer("max_overruns", 0);
   p.check(max_over >= 0, "max_overruns", "must be >= 0");
   realtime.max_overruns = static_cast<std::uint64_t>(std::max<std::int64_t>(0, max_over));
+  realtime.spin_us = p.integer("spin_us", 0);
+  p.check(realtime.spin_us >= 0 && realtime.spin_us <= 1'000'000, "spin_us",
+          "busy-wait before each deadline must be 0..1000000 us, got " + std::to_string(realtime.spin_us));
   detail::report_unread_keys(p);
 }
 
@@ -1529,6 +1532,7 @@ Json Pipeline::describe() const {
                          : im.realtime.overrun_policy == OverrunPolicy::catch_up ? "catch_up"
                                                                                  : "skip";
   rt["max_overruns"] = im.realtime.max_overruns;
+  rt["spin_us"] = im.realtime.spin_us;
   j["realtime"] = std::move(rt);
   if (impl_->telemetry.enabled) {
     const auto& t = impl_->telemetry;

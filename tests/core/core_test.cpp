@@ -2,7 +2,10 @@
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <ctime>
 #include <random>
 #include <thread>
 
@@ -148,6 +151,30 @@ TEST_F(ParamsFixture, ListsAndNestedMaps) {
   const auto text = diag.format();
   EXPECT_NE(text.find("expected 2 numbers, got 3"), std::string::npos) << text;
   EXPECT_NE(text.find("blocks.b.axes[1].extra: unknown parameter"), std::string::npos) << text;
+}
+
+TEST(RealClock, SpinningSleepNeverReturnsEarlyAndBurnsOnlyTheSpin) {
+  // realtime.spin_us: sleep until spin before the deadline, busy-wait the rest.
+  for (const std::int64_t spin_ns : {std::int64_t{0}, std::int64_t{200'000}}) {
+    lode::RealClock clock(spin_ns);
+    std::int64_t worst_late = 0;
+    timespec cpu0{}, cpu1{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &cpu0);
+    for (int i = 0; i < 20; ++i) {
+      const std::int64_t deadline = clock.now_ns() + 1'000'000;  // 1 ms ahead
+      clock.sleep_until(deadline);
+      const std::int64_t late = clock.now_ns() - deadline;
+      ASSERT_GE(late, 0) << "returned before the deadline (spin " << spin_ns << " ns)";
+      worst_late = std::max(worst_late, late);
+    }
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &cpu1);
+    const double cpu_ms = (cpu1.tv_sec - cpu0.tv_sec) * 1e3 + (cpu1.tv_nsec - cpu0.tv_nsec) * 1e-6;
+    std::printf("spin %lld ns: worst lateness %lld ns, CPU %.2f ms for 20 ms of waiting\n",
+                static_cast<long long>(spin_ns), static_cast<long long>(worst_late), cpu_ms);
+    // Spinning 0.2 ms of each 1 ms wait burns at most ~the spin (plus the sleeps' overhead);
+    // it never spins the whole millisecond.
+    EXPECT_LT(cpu_ms, spin_ns > 0 ? 12.0 : 5.0);
+  }
 }
 
 TEST(Json, DumpsOrderedAndEscaped) {

@@ -142,6 +142,8 @@ const std::vector<Case>& cases() {
        "mass_kg", "mass_kg: -1"},
       {"bad_realtime_priority", [] { return replace(kValid, "rate_hz: 800\n", "rate_hz: 800\nrealtime: {priority: 150}\n"); },
        "SCHED_FIFO priority must be 0 (none) or 1..99", "priority: 150"},
+      {"bad_realtime_spin", [] { return replace(kValid, "rate_hz: 800\n", "rate_hz: 800\nrealtime: {spin_us: -5}\n"); },
+       "busy-wait before each deadline must be 0..1000000 us, got -5", "spin_us: -5"},
       // The telemetry: section is checked like the rest, before anything starts.
       {"telemetry_rate_not_a_divisor",
        [] { return kValid + std::string("telemetry: {rate_hz: 300, publish: [stage.truth]}\n"); },

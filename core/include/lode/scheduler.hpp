@@ -33,9 +33,14 @@ class Clock {
 
 class RealClock final : public Clock {
  public:
+  /// spin_ns > 0: sleep until that long before the deadline, then busy-wait to it.
+  explicit RealClock(std::int64_t spin_ns = 0) : spin_ns_(spin_ns) {}
   std::int64_t now_ns() noexcept override;
   void sleep_until(std::int64_t deadline_ns) noexcept override;
   [[nodiscard]] bool simulated() const noexcept override { return false; }
+
+ private:
+  std::int64_t spin_ns_ = 0;
 };
 
 class SimulatedClock final : public Clock {
