@@ -606,19 +606,35 @@ SwapReport HotSwap::wait_and_finish(PreparedPtr prepared, std::chrono::milliseco
                         std::chrono::milliseconds(static_cast<std::int64_t>(
                             1e3 * prepared->shadow_cycles / pipeline_.rate_hz()));
   while (!done()) {
-    if (std::chrono::steady_clock::now() > deadline) {
+    const bool stopped = !running_.load(std::memory_order_acquire);
+    if (stopped || std::chrono::steady_clock::now() > deadline) {
       int posted = kPosted, prefetched = kPrefetched;
       if (state_.compare_exchange_strong(posted, kIdle, std::memory_order_acq_rel) ||
           state_.compare_exchange_strong(prefetched, kIdle, std::memory_order_acq_rel)) {
         SwapReport r = std::move(prepared->report);
         r.ok = false;
-        r.message = "swap " + r.block + ": not done: the pipeline did not reach a cycle boundary in time; " +
-                    r.old_plugin + " keeps running";
+        r.message = "swap " + r.block + ": not done: " +
+                    (stopped ? std::string("the pipeline stopped before the exchange")
+                             : std::string("the pipeline did not reach a cycle boundary in time")) +
+                    "; " + r.old_plugin + " keeps running";
         box_ = nullptr;
         if (prepared->record && prepared->record->block) prepared->record->block->deactivate();
         return r;
       }
-      // Warming or installed: the RT thread holds it; it finishes within cycles.
+      if (stopped) {
+        // Warming or installed when the RT thread stopped (it has been joined): complete the
+        // exchange on this thread, as when no RT thread runs.
+        const int state = state_.load(std::memory_order_acquire);
+        if (state == kWarming || state == kInstalled) {
+          if (state == kWarming) prepared->family->warming_left = 0;
+          Tick idle;
+          idle.dt_s = 1.0 / pipeline_.rate_hz();
+          before_cycle(idle);
+          after_cycle(idle);
+          continue;
+        }
+      }
+      // Otherwise warming or installed: the RT thread holds it; it finishes within cycles.
     }
     std::this_thread::sleep_for(std::chrono::microseconds(100));
   }

@@ -24,6 +24,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <chrono>
+#include <thread>
 #include <cstdio>
 #include <fstream>
 #include <functional>
@@ -270,6 +272,25 @@ TEST(HotSwap, ColdStartWouldJumpFarMoreThanAWarmStart) {
   std::printf("warm jump x %.3g m; cold (no state handover) jump x %.3g m, v would start at 0\n", warm.jump[0],
               cold.jump[0]);
   EXPECT_GT(std::abs(cold.jump[0]), 10 * std::abs(warm.jump[0]));
+}
+
+TEST(HotSwap, ASwapPendingWhenThePipelineStopsIsWithdrawnWithTheReason) {
+  Rig rig(read_config("kawato_planar_swap.yaml"));
+  ASSERT_TRUE(rig.pipeline) << rig.diagnostics.format();
+  for (int i = 0; i < 100; ++i) rig.step();
+  lode::SwapRequest req;
+  req.block = "kf";
+  req.plugin = "estimator.hybrid_h2hinf";
+  req.params = kHybridParams;
+  lode::SwapReport report;
+  // No cycle runs: the request stays posted until the "RT thread" is declared stopped.
+  std::thread caller([&] { report = rig.swapper->swap(req); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  rig.swapper->set_running(false);
+  caller.join();
+  EXPECT_FALSE(report.ok);
+  EXPECT_NE(report.message.find("the pipeline stopped before the exchange"), std::string::npos) << report.message;
+  EXPECT_EQ(rig.pipeline->plugin_of("kf"), "estimator.kalman");
 }
 
 TEST(HotSwap, RefusedPluginsLeaveTheIncumbentRunning) {

@@ -24,6 +24,7 @@
 
 #include "lode/testing/allocation_counter.hpp"
 #include "lode/testing/harness.hpp"
+#include "lode/testing/state_export.hpp"
 
 
 namespace lode::plugins {
@@ -697,20 +698,6 @@ TEST(GlsdcRealTime, StepDoesNotAllocate) {
 
 // --- estimator state (hot swap) and invalid_measurement ---------------------------------
 
-struct Exported {
-  std::vector<double> values;
-  std::vector<double> covariance;
-};
-
-Exported export_of(Block& block) {
-  const StateLayout layout = block.state_layout();
-  Exported e;
-  e.values.assign(layout.size(), std::nan(""));
-  e.covariance.assign(layout.size() * layout.size(), std::nan(""));
-  block.export_state(e.values.data(), layout.covariance ? e.covariance.data() : nullptr);
-  return e;
-}
-
 bool positive_definite(const std::vector<double>& c) {
   Eigen::Matrix3d p;
   for (int i = 0; i < 3; ++i)
@@ -747,7 +734,7 @@ TEST(GlsdcState, LayoutAndExportBeforeTheFirstSolve) {
   double nu = 0.0, s = 0.0;
   EXPECT_FALSE(rig.block().innovation(&nu, &s));
   // Before any solve: the initial pose and "unknown" (1 m^2, 1 m^2, 1 rad^2), positive definite.
-  const Exported e = export_of(rig.block());
+  const auto e = lode::testing::export_state_of(rig.block());
   EXPECT_EQ(e.values, (std::vector<double>{0.001, -0.002, 0.003}));
   EXPECT_EQ(e.covariance, (std::vector<double>{1, 0, 0, 0, 1, 0, 0, 0, 1}));
 }
@@ -758,7 +745,7 @@ TEST(GlsdcState, ExportIsTheWarmStartAndThePublishedR) {
   Rig rig("model: hall", hall_model("hall", "[1, 5]"));
   ASSERT_TRUE(rig.ok());
   for (const auto& y : noisy_path(truth, 20, 5)) ASSERT_EQ(rig.step(y), StepStatus::ok);
-  const Exported e = export_of(rig.block());
+  const auto e = lode::testing::export_state_of(rig.block());
   for (int a = 0; a < 3; ++a) {
     EXPECT_EQ(e.values[static_cast<std::size_t>(a)], rig.pose(a));
     for (int b = 0; b < 3; ++b) {
@@ -774,7 +761,7 @@ TEST(GlsdcState, ExportIsTheWarmStartAndThePublishedR) {
   Rig two(params_with_initial(0.0, 0.0, 0.002, "mode: 2dof\n"), hall_model("hall", "[1, 5]"));
   ASSERT_TRUE(two.ok());
   for (int k = 0; k < 5; ++k) ASSERT_EQ(two.step(truth.measure(1e-4, 2e-4, 0.002)), StepStatus::ok);
-  const Exported e2 = export_of(two.block());
+  const auto e2 = lode::testing::export_state_of(two.block());
   EXPECT_EQ(two.covariance(2, 2), 0.0) << "the published R keeps theta's row and column 0";
   EXPECT_EQ(e2.covariance[8], Glsdc::kUnknownVariance);
   EXPECT_EQ(e2.covariance[2], 0.0);
@@ -793,10 +780,10 @@ TEST(GlsdcState, ExportImportReproducesTheNextStepsBitForBit) {
     ASSERT_TRUE(a.ok() && b.ok());
     const auto path = noisy_path(truth, 120, 9);
     for (int k = 0; k < 100; ++k) ASSERT_EQ(a.step(path[static_cast<std::size_t>(k)]), StepStatus::ok);
-    const Exported e = export_of(a.block());
+    const auto e = lode::testing::export_state_of(a.block());
     const std::uint8_t present[3] = {1, 1, 1};
     b.block().import_state(e.values.data(), e.covariance.data(), present);
-    EXPECT_EQ(export_of(b.block()).values, e.values);
+    EXPECT_EQ(lode::testing::export_state_of(b.block()).values, e.values);
     for (int k = 100; k < 120; ++k) {
       ASSERT_EQ(a.step(path[static_cast<std::size_t>(k)]), StepStatus::ok);
       ASSERT_EQ(b.step(path[static_cast<std::size_t>(k)]), StepStatus::ok);
@@ -815,9 +802,9 @@ TEST(GlsdcState, PresentMaskKeepsTheInitialPose) {
   const double values[3] = {0.004, std::nan(""), 0.006};
   const std::uint8_t present[3] = {1, 1, 0};
   rig.block().import_state(values, nullptr, present);
-  EXPECT_EQ(export_of(rig.block()).values, (std::vector<double>{0.004, -0.002, 0.003}))
+  EXPECT_EQ(lode::testing::export_state_of(rig.block()).values, (std::vector<double>{0.004, -0.002, 0.003}))
       << "absent or non-finite: the configured initial pose";
-  EXPECT_TRUE(positive_definite(export_of(rig.block()).covariance));
+  EXPECT_TRUE(positive_definite(lode::testing::export_state_of(rig.block()).covariance));
 }
 
 TEST(GlsdcInvalid, PropagateMakesTheCycleNaNAndKeepsTheWarmStart) {
@@ -831,7 +818,7 @@ TEST(GlsdcInvalid, PropagateMakesTheCycleNaNAndKeepsTheWarmStart) {
     ASSERT_EQ(rig.step(path[static_cast<std::size_t>(k)]), StepStatus::ok);
     ASSERT_EQ(reference.step(path[static_cast<std::size_t>(k)]), StepStatus::ok);
   }
-  const Exported before = export_of(rig.block());
+  const auto before = lode::testing::export_state_of(rig.block());
   std::vector<double> bad = path[30];
   bad[1] = std::nan("");
   ASSERT_EQ(rig.step(bad), StepStatus::ok);
@@ -840,7 +827,7 @@ TEST(GlsdcInvalid, PropagateMakesTheCycleNaNAndKeepsTheWarmStart) {
     for (int j = 0; j < 3; ++j) EXPECT_TRUE(std::isnan(rig.covariance(i, j)));
   }
   EXPECT_TRUE(std::isnan(rig.cost()));
-  const Exported during = export_of(rig.block());
+  const auto during = lode::testing::export_state_of(rig.block());
   EXPECT_EQ(during.values, before.values) << "the warm start is kept";
   EXPECT_EQ(during.covariance, before.covariance);
   // The next valid cycle continues exactly as if the bad one had not happened.

@@ -22,6 +22,7 @@
 #include "lode/math/riccati.hpp"
 #include "lode/testing/allocation_counter.hpp"
 #include "lode/testing/harness.hpp"
+#include "lode/testing/state_export.hpp"
 
 namespace lode::plugins {
 namespace {
@@ -588,28 +589,6 @@ TEST(HybridTunables, SetTunableAllocatesNothing) {
 
 const Elements kPose3 = {{"x", "m"}, {"y", "m"}, {"theta_z", "rad"}};
 
-struct Exported {
-  std::vector<double> values;
-  std::vector<double> covariance;
-};
-
-Exported export_of(Block& block) {
-  const StateLayout layout = block.state_layout();
-  Exported e;
-  e.values.assign(layout.size(), NAN);
-  e.covariance.assign(layout.size() * layout.size(), NAN);
-  block.export_state(e.values.data(), layout.covariance ? e.covariance.data() : nullptr);
-  return e;
-}
-
-bool cholesky_ok(const std::vector<double>& cov, std::size_t n) {
-  Eigen::MatrixXd p(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
-  for (std::size_t i = 0; i < n; ++i)
-    for (std::size_t j = 0; j < n; ++j) p(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = cov[i * n + j];
-  if (!p.allFinite() || p != p.transpose()) return false;
-  return Eigen::LLT<Eigen::MatrixXd>(p).info() == Eigen::Success;
-}
-
 /// Simulated truth of one constant-acceleration axis (eq. 20-23): jerk w ~ N(0, q), measured
 /// with v ~ N(0, r). Fixed seed.
 class AxisTruth {
@@ -663,15 +642,15 @@ TEST(HybridState, LayoutMatchesTheKalmanOneToOneAndStateCrossesBothWays) {
   const std::vector<std::uint8_t> present(9, 1);
   // kalman -> hybrid: the state arrives unchanged.
   run(kalman_h, 0, 400);
-  const Exported k_state = export_of(kalman_h.block());
+  const auto k_state = lode::testing::export_state_of(kalman_h.block());
   hybrid_h.block().import_state(k_state.values.data(), k_state.covariance.data(), present.data());
-  EXPECT_EQ(export_of(hybrid_h.block()).values, k_state.values);
+  EXPECT_EQ(lode::testing::export_state_of(hybrid_h.block()).values, k_state.values);
   // hybrid -> kalman: the state and the hybrid's steady covariance arrive unchanged.
   run(hybrid_h, 400, 800);
-  const Exported h_state = export_of(hybrid_h.block());
-  EXPECT_TRUE(cholesky_ok(h_state.covariance, 9));
+  const auto h_state = lode::testing::export_state_of(hybrid_h.block());
+  EXPECT_TRUE(lode::testing::covariance_usable(h_state.covariance, 9));
   kalman_h.block().import_state(h_state.values.data(), h_state.covariance.data(), present.data());
-  const Exported k_after = export_of(kalman_h.block());
+  const auto k_after = lode::testing::export_state_of(kalman_h.block());
   EXPECT_EQ(k_after.values, h_state.values);
   EXPECT_EQ(k_after.covariance, h_state.covariance);
   // Both now hold the same prior x^-_k: the first innovation after the swap is the same number.
@@ -721,11 +700,11 @@ TEST(HybridState, SteadyCovarianceSolvesTheLyapunovEquationAndIsTheDarePriorAtDO
   std::printf("hybrid d = 0.3: steady P^-(0,0) = %.4g m^2 vs Kalman %.4g m^2\n", s(0, 0), kalman.prior_cov(0, 0));
 
   // A new d at run time moves the exported covariance with it (at the next step).
-  const double before = export_of(rig.h.block()).covariance[0];
+  const double before = lode::testing::export_state_of(rig.h.block()).covariance[0];
   const char* why = "";
   ASSERT_TRUE(rig.h.block().set_tunable(0, 1.0, why)) << why;
   ASSERT_EQ(rig.step(0.0), StepStatus::ok);
-  const double after = export_of(rig.h.block()).covariance[0];
+  const double after = lode::testing::export_state_of(rig.h.block()).covariance[0];
   EXPECT_NE(after, before);
   EXPECT_NEAR(after, kalman.prior_cov(0, 0), 1e-8 * kalman.prior_cov(0, 0));
 }
@@ -750,11 +729,11 @@ TEST(HybridState, ExportImportReproducesTheNextStepsBitForBit) {
       feed(a, k);
       ASSERT_EQ(a.step(), StepStatus::ok);
     }
-    const Exported e = export_of(a.block());
+    const auto e = lode::testing::export_state_of(a.block());
     const std::vector<std::uint8_t> present(18, 1);
     b.block().import_state(e.values.data(), e.covariance.data(), present.data());
-    EXPECT_EQ(export_of(b.block()).values, e.values);
-    EXPECT_EQ(export_of(b.block()).covariance, e.covariance);
+    EXPECT_EQ(lode::testing::export_state_of(b.block()).values, e.values);
+    EXPECT_EQ(lode::testing::export_state_of(b.block()).covariance, e.covariance);
     for (int k = 800; k < 900; ++k) {
       feed(a, k);
       feed(b, k);
@@ -773,20 +752,20 @@ TEST(HybridState, PresentMaskKeepsInitialValuesAndTheCovarianceStaysPositiveDefi
   ASSERT_TRUE(a.status) << a.h.diagnostics();
   ASSERT_TRUE(b.status) << b.h.diagnostics();
   for (int k = 0; k < 300; ++k) ASSERT_EQ(a.step(1e-4 * std::sin(0.03 * k)), StepStatus::ok);
-  const Exported e = export_of(a.h.block());
+  const auto e = lode::testing::export_state_of(a.h.block());
   std::vector<std::uint8_t> present(9, 1);
   present[1] = 0;  // x_dot
   present[6] = present[7] = present[8] = 0;  // theta_z, all of it
   std::vector<double> values = e.values;
   values[4] = NAN;  // a non-finite value counts as absent
   b.h.block().import_state(values.data(), nullptr, present.data());
-  const Exported got = export_of(b.h.block());
+  const auto got = lode::testing::export_state_of(b.h.block());
   for (std::size_t i = 0; i < 9; ++i) {
     const bool given = present[i] != 0 && i != 4;
     EXPECT_EQ(got.values[i], given ? e.values[i] : 0.0) << i;
   }
   EXPECT_EQ(got.covariance, e.covariance) << "the covariance is the steady one, whatever is imported";
-  EXPECT_TRUE(cholesky_ok(got.covariance, 9));
+  EXPECT_TRUE(lode::testing::covariance_usable(got.covariance, 9));
   // theta_z's position was absent: the next measurement places it (initialize_from_first_measurement).
   b.input[0] = b.input[1] = 0.0;
   b.input[2] = 5e-3;
@@ -835,7 +814,7 @@ TEST(HybridInvalid, PredictCoastsTheAxisWithANaNAndFaultModeIsUnchanged) {
     ASSERT_EQ(coast.step(1e-5 * std::sin(0.05 * k)), StepStatus::ok);
     ASSERT_EQ(reference.step(1e-5 * std::sin(0.05 * k)), StepStatus::ok);
   }
-  const Exported before = export_of(coast.h.block());
+  const auto before = lode::testing::export_state_of(coast.h.block());
   for (std::size_t i = 0; i < 6; ++i) coast.input[i] = reference.input[i] = 2e-6;
   coast.input[3] = std::nan("");
   ASSERT_EQ(coast.h.step(), StepStatus::ok) << coast.h.block().fault_reason();
@@ -851,7 +830,7 @@ TEST(HybridInvalid, PredictCoastsTheAxisWithANaNAndFaultModeIsUnchanged) {
     }
   }
   // Axis 3 (z): x^+ = x^- (output: filtered), x^-_{k+1} = Phi x^-_k.
-  const Exported after = export_of(coast.h.block());
+  const auto after = lode::testing::export_state_of(coast.h.block());
   EXPECT_EQ(coast.h.output("pose")[3], before.values[9]);
   const Vector3 x(before.values[9], before.values[10], before.values[11]);
   const Vector3 expected = AxisModel::make(kT).phi * x;
@@ -860,10 +839,10 @@ TEST(HybridInvalid, PredictCoastsTheAxisWithANaNAndFaultModeIsUnchanged) {
   EXPECT_TRUE(coast.h.block().innovation(nu, s));
 
   // Fault mode: the fault leaves every axis exactly as it was.
-  const Exported ref_before = export_of(reference.h.block());
+  const auto ref_before = lode::testing::export_state_of(reference.h.block());
   reference.input[5] = std::nan("");
   EXPECT_EQ(reference.h.step(), StepStatus::fault);
-  EXPECT_EQ(export_of(reference.h.block()).values, ref_before.values);
+  EXPECT_EQ(lode::testing::export_state_of(reference.h.block()).values, ref_before.values);
   EXPECT_FALSE(reference.h.block().innovation(nu, s));
 }
 

@@ -21,6 +21,7 @@
 
 #include "lode/testing/allocation_counter.hpp"
 #include "lode/testing/harness.hpp"
+#include "lode/testing/state_export.hpp"
 
 
 namespace lode::plugins {
@@ -503,28 +504,6 @@ class AxisTruth {
   Eigen::Vector3d x_ = Eigen::Vector3d(1e-3, 0.0, 0.0);
 };
 
-struct Exported {
-  std::vector<double> values;
-  std::vector<double> covariance;
-};
-
-Exported export_of(Block& block) {
-  const StateLayout layout = block.state_layout();
-  Exported e;
-  e.values.assign(layout.size(), NAN);
-  e.covariance.assign(layout.size() * layout.size(), NAN);
-  block.export_state(e.values.data(), layout.covariance ? e.covariance.data() : nullptr);
-  return e;
-}
-
-bool cholesky_ok(const std::vector<double>& cov, std::size_t n) {
-  Eigen::MatrixXd p(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
-  for (std::size_t i = 0; i < n; ++i)
-    for (std::size_t j = 0; j < n; ++j) p(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = cov[i * n + j];
-  if (!p.allFinite() || p != p.transpose()) return false;
-  return Eigen::LLT<Eigen::MatrixXd>(p).info() == Eigen::Success;
-}
-
 /// Run `h` on a noisy sine for `steps` cycles (3 axes, y(k) also used later by the caller).
 double sine_measurement(int k, std::size_t axis) { return 1e-4 * std::sin(0.01 * k + static_cast<double>(axis)) + 1e-7 * std::cos(1.3 * k); }
 
@@ -554,7 +533,7 @@ TEST(EstimatorKalmanState, LayoutNamesUnitsAndCovariance) {
 
   // Before any step: x^-_0 = 0 and P^-_0 = p0 I (block diagonal, cross-axis zero).
   ASSERT_TRUE(ca.activate());
-  const Exported e = export_of(ca.block());
+  const auto e = lode::testing::export_state_of(ca.block());
   for (std::size_t i = 0; i < 9; ++i) {
     EXPECT_EQ(e.values[i], 0.0);
     for (std::size_t j = 0; j < 9; ++j) EXPECT_EQ(e.covariance[i * 9 + j], i == j ? 1e-8 : 0.0) << i << "," << j;
@@ -592,10 +571,10 @@ void check_export_import_bit_for_bit(const std::string& params, bool covariance_
     ASSERT_EQ(a.step(), StepStatus::ok);
   }
   const StateLayout layout = a.block().state_layout();
-  const Exported e = export_of(a.block());
+  const auto e = lode::testing::export_state_of(a.block());
   const std::vector<std::uint8_t> present(layout.size(), 1);
   b.block().import_state(e.values.data(), e.covariance.data(), present.data());
-  const Exported e_b = export_of(b.block());
+  const auto e_b = lode::testing::export_state_of(b.block());
   EXPECT_EQ(e_b.values, e.values);
   EXPECT_EQ(e_b.covariance, e.covariance);
   for (int k = 700; k < 760; ++k) {
@@ -652,7 +631,7 @@ TEST(EstimatorKalmanState, PresentMaskKeepsInitialValuesAndP0) {
     for (std::size_t i = 0; i < 3; ++i) y[i] = sine_measurement(k, i);
     ASSERT_EQ(a.step(), StepStatus::ok);
   }
-  Exported e = export_of(a.block());
+  auto e = lode::testing::export_state_of(a.block());
   // Mark the y axis velocity and everything of theta_z absent; give a cross-axis term too
   // (a UKF could): it must be dropped, the filter is block diagonal.
   std::vector<std::uint8_t> present(9, 1);
@@ -660,7 +639,7 @@ TEST(EstimatorKalmanState, PresentMaskKeepsInitialValuesAndP0) {
   present[6] = present[7] = present[8] = 0;
   e.covariance[0 * 9 + 3] = e.covariance[3 * 9 + 0] = 0.5 * std::sqrt(e.covariance[0] * e.covariance[30]);
   b.block().import_state(e.values.data(), e.covariance.data(), present.data());
-  const Exported got = export_of(b.block());
+  const auto got = lode::testing::export_state_of(b.block());
   const double p0[3] = {1e-8, 2e-8, 3e-8};
   for (std::size_t i = 0; i < 9; ++i) {
     const std::size_t axis = i / 3;
@@ -674,7 +653,7 @@ TEST(EstimatorKalmanState, PresentMaskKeepsInitialValuesAndP0) {
       EXPECT_EQ(got.covariance[i * 9 + j], expected) << i << "," << j;
     }
   }
-  EXPECT_TRUE(cholesky_ok(got.covariance, 9));
+  EXPECT_TRUE(lode::testing::covariance_usable(got.covariance, 9));
 
   // Garbage in (non-symmetric, indefinite, NaN): still a symmetric positive definite P.
   std::vector<double> bad(81, 1.0);
@@ -683,8 +662,8 @@ TEST(EstimatorKalmanState, PresentMaskKeepsInitialValuesAndP0) {
   bad[3 * 9 + 4] = 7.0;
   const std::vector<std::uint8_t> all(9, 1);
   b.block().import_state(e.values.data(), bad.data(), all.data());
-  const Exported repaired = export_of(b.block());
-  EXPECT_TRUE(cholesky_ok(repaired.covariance, 9));
+  const auto repaired = lode::testing::export_state_of(b.block());
+  EXPECT_TRUE(lode::testing::covariance_usable(repaired.covariance, 9));
   for (std::size_t i = 0; i < 9; ++i) EXPECT_EQ(repaired.covariance[i * 9 + i], p0[i / 3]) << i;
   ASSERT_EQ(b.step(), StepStatus::ok);
 }
@@ -742,7 +721,7 @@ TEST(EstimatorKalmanInvalid, PredictCoastsTheAxisWithANaN) {
     ASSERT_EQ(run(h, k, false), StepStatus::ok);
     ASSERT_EQ(run(reference, k, false), StepStatus::ok);
   }
-  const Exported before = export_of(h.block());
+  const auto before = lode::testing::export_state_of(h.block());
   ASSERT_EQ(run(h, 300, true), StepStatus::ok) << h.block().fault_reason();
   ASSERT_EQ(run(reference, 300, false), StepStatus::ok);
   for (const char* port : {"pose", "velocity", "acceleration", "innovation"}) {
@@ -757,7 +736,7 @@ TEST(EstimatorKalmanInvalid, PredictCoastsTheAxisWithANaN) {
     EXPECT_EQ(h.output("innovation")[i], reference.output("innovation")[i]);
   }
   // The y axis: time update only, x^-_{k+1} = Phi x^-_k, and P^- grew.
-  const Exported after = export_of(h.block());
+  const auto after = lode::testing::export_state_of(h.block());
   const double t = kPeriodS;
   const double* x = &before.values[3];
   EXPECT_DOUBLE_EQ(after.values[3], x[0] + t * x[1] + 0.5 * t * t * x[2]);
@@ -765,7 +744,7 @@ TEST(EstimatorKalmanInvalid, PredictCoastsTheAxisWithANaN) {
   EXPECT_EQ(after.values[5], x[2]);
   EXPECT_EQ(h.output("pose")[1], after.values[3]) << "output: predicted";
   EXPECT_GT(after.covariance[3 * 9 + 3], before.covariance[3 * 9 + 3]);
-  EXPECT_TRUE(cholesky_ok(after.covariance, 9));
+  EXPECT_TRUE(lode::testing::covariance_usable(after.covariance, 9));
   // Back to valid data: the update resumes and the innovation is reported again.
   ASSERT_EQ(run(h, 301, false), StepStatus::ok);
   EXPECT_TRUE(h.block().innovation(nu, s));
@@ -796,13 +775,13 @@ TEST(EstimatorKalmanInvalid, FaultModeIsTheDefaultAndUnchanged) {
   ASSERT_TRUE(h.activate());
   h.input("measurement")[0] = 1e-4;
   ASSERT_EQ(h.step(), StepStatus::ok);
-  const Exported before = export_of(h.block());
+  const auto before = lode::testing::export_state_of(h.block());
   h.input("measurement")[0] = std::nan("");
   EXPECT_EQ(h.step(), StepStatus::fault);
   EXPECT_STREQ(h.block().fault_reason(), "non-finite measurement");
   double nu = 0.0, s = 0.0;
   EXPECT_FALSE(h.block().innovation(&nu, &s));
-  const Exported after = export_of(h.block());
+  const auto after = lode::testing::export_state_of(h.block());
   EXPECT_EQ(after.values, before.values) << "a fault leaves the state as it was";
   EXPECT_EQ(after.covariance, before.covariance);
 
