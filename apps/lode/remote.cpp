@@ -215,6 +215,8 @@ int cmd_echo(const Args& args) {
     std::string pipeline = what.find('/') != std::string::npos ? what.substr(0, what.rfind('/')) : args.option("--pipeline");
     if (pipeline.rfind("lode/", 0) == 0) pipeline = pipeline.substr(5);
     Expected<std::unique_ptr<dds::Subscription>> sub = Status::error("unreachable");
+    // A named pipeline's events end with its "stop" event: then echo is done too.
+    if (events && !pipeline.empty()) watch.follow(pipeline);
     if (events) {
       sub = client->subscribe_events(pipeline, [&](const dds::EventSample& e) {
         std::lock_guard lock(out_mutex);
