@@ -48,6 +48,8 @@ class AnalogConversion {
   /// Calibrated value -> raw register field, nearest code; `clipped` is set when the value
   /// lay outside the converter's range (or was not finite: then the safe value is coded).
   [[nodiscard]] std::uint32_t value_to_code(double value, bool& clipped) const noexcept;
+  /// The signed code index k of a raw register field (k_min ... k_max).
+  [[nodiscard]] std::int64_t code_index(std::uint32_t raw) const noexcept { return index_of(raw); }
   /// The code of the safe value (what a backend writes on a fault).
   [[nodiscard]] std::uint32_t safe_code() const noexcept { return safe_code_; }
   [[nodiscard]] double lsb_v() const noexcept { return lsb_v_; }
