@@ -15,7 +15,8 @@ PACKAGES=(build-essential g++ cmake make pkg-config
   libgtest-dev libgmock-dev libbenchmark-dev rt-tests libslicot-dev
   libfastrtps-dev libfastcdr-dev fastddsgen fastdds-tools  # telemetry over Fast DDS 2.9
   libhdf5-dev hdf5-tools python3-h5py python3-numpy        # recordings (HDF5) and their check
-  openssl)                                                  # DDS Security lab certificates
+  openssl                                                   # DDS Security lab certificates
+  clang libclang-rt-14-dev)                                 # libFuzzer for the decoder fuzz tests
 
 as_root() { if [ "$(id -u)" -eq 0 ]; then "$@"; else sudo "$@"; fi; }
 missing=()

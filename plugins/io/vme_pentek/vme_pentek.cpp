@@ -138,10 +138,13 @@ StepStatus VmePentekBoard::step(const Tick& /*tick*/) noexcept {
     if (status == vme::kNoAnswer) return board_fault("no answer from the board (STATUS reads all ones: VME bus error)", status);
     if ((status & vme::kDone) != 0 && vme::sequence_of(status) != last_sequence_) break;
     if (monotonic_ns() > deadline) {
+      // TRIGGER first, then STATUS again: a board taking the trigger sets BUSY before it
+      // clears TRIGGER, so the pair read in this order is consistent.
+      const bool trigger_pending = !external_trigger_ && window_.read32(vme::kTrigger) != 0;
+      status = window_.read32(vme::kStatus);
       return board_fault((status & vme::kBusy) != 0 ? "conversion did not complete within conversion_timeout_us (BUSY)"
-                         : window_.read32(vme::kTrigger) != 0
-                             ? "the board did not take the trigger within conversion_timeout_us (not answering)"
-                             : "no new conversion within conversion_timeout_us",
+                         : trigger_pending ? "the board did not take the trigger within conversion_timeout_us (not answering)"
+                                           : "no new conversion within conversion_timeout_us",
                          status);
     }
   }

@@ -1,4 +1,5 @@
-// Drive one block through the same port API the scheduler uses, for plugin unit tests.
+// Drive one block through the same port API the scheduler uses, for plugin unit tests: the
+// tests' name for lode::BlockHost (lode/block_host.hpp), which has the whole interface.
 //
 //   lode::testing::BlockHarness h("estimator.kalman", R"(
 //       motion: constant_acceleration
@@ -8,49 +9,12 @@
 //   ASSERT_TRUE(h.activate());
 //   h.input("input")[0] = 1e-4;  h.step();
 //   double x = h.output("pose")[0];
-//
-// The block and any models it asks for are loaded from the plugin search path (the build
-// tree's plugin folder first), exactly as `lode run` loads them. `models_yaml` is the text
-// of a pipeline's `models:` map.
 #pragma once
 
-#include <map>
-#include <memory>
-#include <span>
-#include <string>
-#include <vector>
-
-#include "lode/block.hpp"
+#include "lode/block_host.hpp"
 
 namespace lode::testing {
 
-class BlockHarness {
- public:
-  BlockHarness(std::string plugin, std::string params_yaml, double rate_hz,
-               std::string models_yaml = {});
-  ~BlockHarness();
-
-  /// Declare a test source for input `name` with these elements. Call before configure().
-  void feed(const std::string& name, Elements elements);
-
-  /// configure(); on failure diagnostics() tells why. Binds ports on success.
-  Status configure();
-  Status activate();
-  StepStatus step();   ///< advances the tick
-  StepStatus write();  ///< io blocks: write phase of the current tick
-  void deactivate();
-
-  std::span<double> input(const std::string& name);
-  std::span<const double> output(const std::string& name) const;
-  [[nodiscard]] const Elements& output_elements(const std::string& name) const;
-  [[nodiscard]] Json describe() const;
-  [[nodiscard]] std::string diagnostics() const;
-  [[nodiscard]] const Tick& tick() const;
-  Block& block();
-
- private:
-  struct Impl;
-  std::unique_ptr<Impl> impl_;
-};
+using BlockHarness = BlockHost;
 
 }  // namespace lode::testing

@@ -242,7 +242,7 @@ TEST(PlanarStageYaml, NonPositiveMassAndInertiaAreLocatedErrors) {
   const std::string d = h.diagnostics();
   EXPECT_NE(d.find("models.stage.mass_kg: must be > 0 kg, got -6.2"), std::string::npos) << d;
   EXPECT_NE(d.find("models.stage.inertia_kg_m2: must be > 0"), std::string::npos) << d;
-  EXPECT_TRUE(std::regex_search(d, std::regex(R"(<harness:io\.sim>:\d+:\d+: models\.stage\.mass_kg)")))
+  EXPECT_TRUE(std::regex_search(d, std::regex(R"(<block_host:io\.sim>:\d+:\d+: models\.stage\.mass_kg)")))
       << "errors carry file:line:column: " << d;
   EXPECT_EQ(d.find("has no input"), std::string::npos) << "no follow-on errors: " << d;
 }

@@ -1,4 +1,4 @@
-#include "lode/testing/harness.hpp"
+#include "lode/block_host.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -7,11 +7,11 @@
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
 
-namespace lode::testing {
+namespace lode {
 
-// The harness is a one-block pipeline loaded by the real loader: the block under test is
+// The host is a one-block pipeline loaded by the real loader: the block under test is
 // named "dut" and each fed input comes from an output of the pseudo-block "feed".
-struct BlockHarness::Impl {
+struct BlockHost::Impl {
   std::string plugin;
   std::string params_yaml;
   double rate_hz;
@@ -25,7 +25,7 @@ struct BlockHarness::Impl {
   bool stepped = false;
 };
 
-BlockHarness::BlockHarness(std::string plugin, std::string params_yaml, double rate_hz,
+BlockHost::BlockHost(std::string plugin, std::string params_yaml, double rate_hz,
                            std::string models_yaml)
     : impl_(std::make_unique<Impl>()) {
   impl_->plugin = std::move(plugin);
@@ -35,17 +35,17 @@ BlockHarness::BlockHarness(std::string plugin, std::string params_yaml, double r
   impl_->tick.dt_s = 1.0 / rate_hz;
 }
 
-BlockHarness::~BlockHarness() {
+BlockHost::~BlockHost() {
   if (impl_->pipeline) impl_->pipeline->deactivate();
 }
 
-void BlockHarness::feed(const std::string& name, Elements elements) {
+void BlockHost::feed(const std::string& name, Elements elements) {
   impl_->feeds.emplace_back(name, std::move(elements));
 }
 
-Status BlockHarness::configure() {
+Status BlockHost::configure() {
   YAML::Node root;
-  root["pipeline"] = "harness";
+  root["pipeline"] = "block_host";
   root["rate_hz"] = impl_->rate_hz;
   YAML::Node params = impl_->params_yaml.empty() ? YAML::Node(YAML::NodeType::Map)
                                                  : YAML::Load(impl_->params_yaml);
@@ -56,19 +56,19 @@ Status BlockHarness::configure() {
   if (!impl_->models_yaml.empty()) root["models"] = YAML::Load(impl_->models_yaml);
   YAML::Emitter out;
   out << root;
-  impl_->pipeline = Pipeline::load_text(out.c_str(), "<harness:" + impl_->plugin + ">",
+  impl_->pipeline = Pipeline::load_text(out.c_str(), "<block_host:" + impl_->plugin + ">",
                                         impl_->registry, impl_->diagnostics, impl_->feeds);
   if (!impl_->pipeline) return Status::error(impl_->diagnostics.format());
   impl_->dut = impl_->pipeline->block("dut");
   return {};
 }
 
-Status BlockHarness::activate() {
+Status BlockHost::activate() {
   if (!impl_->pipeline) return Status::error("not configured");
   return impl_->pipeline->activate();
 }
 
-StepStatus BlockHarness::step() {
+StepStatus BlockHost::step() {
   if (impl_->stepped) {
     ++impl_->tick.cycle;
     impl_->tick.time_ns = static_cast<std::int64_t>(
@@ -78,29 +78,29 @@ StepStatus BlockHarness::step() {
   return impl_->dut->step(impl_->tick);
 }
 
-StepStatus BlockHarness::write() { return impl_->dut->write(impl_->tick); }
+StepStatus BlockHost::write() { return impl_->dut->write(impl_->tick); }
 
-void BlockHarness::deactivate() { impl_->pipeline->deactivate(); }
+void BlockHost::deactivate() { impl_->pipeline->deactivate(); }
 
-std::span<double> BlockHarness::input(const std::string& name) {
+std::span<double> BlockHost::input(const std::string& name) {
   auto s = impl_->pipeline->signal("feed." + name);
   if (!s) throw std::out_of_range("no fed input '" + name + "'");
   return {const_cast<double*>(s->data), s->size()};
 }
 
-std::span<const double> BlockHarness::output(const std::string& name) const {
+std::span<const double> BlockHost::output(const std::string& name) const {
   auto s = impl_->pipeline->signal("dut." + name);
   if (!s) throw std::out_of_range("no output '" + name + "'");
   return {s->data, s->size()};
 }
 
-const Elements& BlockHarness::output_elements(const std::string& name) const {
+const Elements& BlockHost::output_elements(const std::string& name) const {
   auto s = impl_->pipeline->signal("dut." + name);
   if (!s) throw std::out_of_range("no output '" + name + "'");
   return *s->elements;
 }
 
-Json BlockHarness::describe() const {
+Json BlockHost::describe() const {
   Json j = impl_->pipeline->describe();
   const Json* blocks = j.find("blocks");
   const Json* dut = blocks ? blocks->find("dut") : nullptr;
@@ -108,8 +108,8 @@ Json BlockHarness::describe() const {
   return derived ? *derived : Json();
 }
 
-std::string BlockHarness::diagnostics() const { return impl_->diagnostics.format(); }
-const Tick& BlockHarness::tick() const { return impl_->tick; }
-Block& BlockHarness::block() { return *impl_->dut; }
+std::string BlockHost::diagnostics() const { return impl_->diagnostics.format(); }
+const Tick& BlockHost::tick() const { return impl_->tick; }
+Block& BlockHost::block() { return *impl_->dut; }
 
-}  // namespace lode::testing
+}  // namespace lode

@@ -1,0 +1,207 @@
+// lode-vme-emu: plays the Pentek-like VME board pair of io.vme_pentek on a shared-memory
+// register window, its ADC inputs driven by the io.sim block of a simulation pipeline (the
+// plant, the measurement models and the acquisition chain's noise), its DAC outputs driving
+// that plant. So a whole closed loop runs over the register interface without hardware.
+//
+//   lode-vme-emu BOARD.yaml --sim SIM.yaml [--block NAME] [--spin]
+//
+// BOARD.yaml is the pipeline that uses io.vme_pentek (the window's device and offset and the
+// channels are taken from its block); SIM.yaml has an io.sim block of the same name (or
+// --block NAME) whose `signals` are the ADC channels and whose `command` the DAC channels,
+// in order, with the same names and units. Per trigger the emulator advances the plant by one
+// period under the DAC values latched so far, samples it, and presents the codes: the same
+// timing as io.sim in a pipeline (the sample of cycle k+1 is the first to show the command of
+// cycle k). Stops on SIGINT/SIGTERM. Exit codes: 0 stopped, 2 configuration error.
+#include <yaml-cpp/yaml.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "emulator.hpp"
+#include "lode/block_host.hpp"
+#include "lode/hal/analog.hpp"
+#include "lode/units.hpp"
+#include "register_map.hpp"
+
+namespace {
+
+constexpr int kExitConfig = 2;
+std::atomic<bool> g_stop{false};
+void on_signal(int) { g_stop.store(true); }
+
+struct BoardConfig {
+  std::string device;
+  std::uint64_t offset = 0;
+  std::vector<lode::hal::AnalogChannel> adc, dac;
+};
+
+std::string where(const std::string& file, const YAML::Node& n) {
+  return file + ":" + std::to_string(n.Mark().line + 1);
+}
+
+/// The io.vme_pentek block's channels, read as io.vme_pentek reads them (same defaults).
+bool read_channels(const std::string& file, const YAML::Node& list, bool output,
+                   std::vector<lode::hal::AnalogChannel>& out) {
+  for (const auto& item : list) {
+    lode::hal::AnalogChannel c;
+    c.name = item["name"].as<std::string>("");
+    c.bits = item["bits"].as<int>(16);
+    if (item["span_v"]) {
+      c.span_min_v = item["span_v"][0].as<double>();
+      c.span_max_v = item["span_v"][1].as<double>();
+    }
+    const std::string coding = item["coding"].as<std::string>("twos_complement");
+    c.coding = coding == "offset_binary" ? lode::hal::Coding::offset_binary
+               : coding == "unipolar"    ? lode::hal::Coding::unipolar
+                                         : lode::hal::Coding::twos_complement;
+    c.gain = item["gain"].as<double>(1.0);
+    c.offset = item["offset"].as<double>(0.0);
+    c.unit = lode::canonical_unit(item["unit"].as<std::string>("V"));
+    if (output) c.safe_value = item["safe_value"].as<double>(0.0);
+    if (auto st = lode::hal::validate(c); !st) {
+      std::fprintf(stderr, "lode-vme-emu: %s: %s\n", where(file, item).c_str(), st.message().c_str());
+      return false;
+    }
+    out.push_back(c);
+  }
+  return true;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string board_file, sim_file, block;
+  bool spin = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--sim" && i + 1 < argc) sim_file = argv[++i];
+    else if (a == "--block" && i + 1 < argc) block = argv[++i];
+    else if (a == "--spin") spin = true;
+    else if (a == "-h" || a == "--help") {
+      std::printf("usage: lode-vme-emu BOARD.yaml --sim SIM.yaml [--block NAME] [--spin]\n");
+      return 0;
+    } else if (board_file.empty() && a[0] != '-') board_file = a;
+    else {
+      std::fprintf(stderr, "lode-vme-emu: unknown argument '%s' (--help)\n", a.c_str());
+      return kExitConfig;
+    }
+  }
+  if (board_file.empty() || sim_file.empty()) {
+    std::fprintf(stderr, "usage: lode-vme-emu BOARD.yaml --sim SIM.yaml [--block NAME] [--spin]\n");
+    return kExitConfig;
+  }
+  YAML::Node board_root, sim_root;
+  try {
+    board_root = YAML::LoadFile(board_file);
+    sim_root = YAML::LoadFile(sim_file);
+  } catch (const YAML::Exception& e) {
+    std::fprintf(stderr, "lode-vme-emu: %s\n", e.what());
+    return kExitConfig;
+  }
+  // The board: the io.vme_pentek block (named --block, else the first).
+  BoardConfig board;
+  YAML::Node vme;
+  for (const auto& kv : board_root["blocks"]) {
+    if (kv.second["plugin"].as<std::string>("") != "io.vme_pentek") continue;
+    if (!block.empty() && kv.first.as<std::string>() != block) continue;
+    block = kv.first.as<std::string>();
+    vme = kv.second;
+    break;
+  }
+  if (!vme) {
+    std::fprintf(stderr, "lode-vme-emu: %s has no io.vme_pentek block%s\n", board_file.c_str(),
+                 block.empty() ? "" : (" named '" + block + "'").c_str());
+    return kExitConfig;
+  }
+  board.device = vme["device"].as<std::string>("");
+  board.offset = vme["offset"].as<std::uint64_t>(0);
+  if (!read_channels(board_file, vme["adc"], false, board.adc) || !read_channels(board_file, vme["dac"], true, board.dac))
+    return kExitConfig;
+  // The plant side: the io.sim block of the same name in the simulation pipeline.
+  const YAML::Node sim_block = sim_root["blocks"][block];
+  if (!sim_block || sim_block["plugin"].as<std::string>("") != "io.sim") {
+    std::fprintf(stderr, "lode-vme-emu: %s has no io.sim block named '%s'\n", sim_file.c_str(), block.c_str());
+    return kExitConfig;
+  }
+  YAML::Node params = YAML::Clone(sim_block);
+  params.remove("plugin");
+  params.remove("inputs");
+  YAML::Emitter params_text, models_text;
+  params_text << params;
+  models_text << sim_root["models"];
+  const double rate_hz = sim_root["rate_hz"].as<double>(800.0);
+  lode::BlockHost sim("io.sim", params_text.c_str(), rate_hz, models_text.c_str());
+  lode::Elements command;
+  for (const auto& c : board.dac) command.push_back({c.name, c.unit});
+  sim.feed("command", command);
+  if (auto st = sim.configure(); !st) {
+    std::fprintf(stderr, "lode-vme-emu: the io.sim block '%s' of %s against the board's DAC channels:\n%s\n",
+                 block.c_str(), sim_file.c_str(), st.message().c_str());
+    return kExitConfig;
+  }
+  const lode::Elements& signals = sim.output_elements("signals");
+  if (signals.size() != board.adc.size()) {
+    std::fprintf(stderr, "lode-vme-emu: io.sim '%s' has %zu channels, the board %zu ADC channels\n", block.c_str(),
+                 signals.size(), board.adc.size());
+    return kExitConfig;
+  }
+  for (std::size_t i = 0; i < signals.size(); ++i) {
+    if (signals[i].name != board.adc[i].name) {
+      std::fprintf(stderr, "lode-vme-emu: ADC channel %zu is '%s' on the board but '%s' in io.sim\n", i,
+                   board.adc[i].name.c_str(), signals[i].name.c_str());
+      return kExitConfig;
+    }
+  }
+  if (auto st = sim.activate(); !st) {
+    std::fprintf(stderr, "lode-vme-emu: %s\n", st.message().c_str());
+    return kExitConfig;
+  }
+  // ADC: the converter codes of the io.sim volts (no calibration: the board converts volts).
+  std::vector<lode::hal::AnalogConversion> adc_volts, dac_values;
+  for (auto c : board.adc) {
+    c.gain = 1.0;
+    c.offset = 0.0;
+    adc_volts.emplace_back(c);
+  }
+  for (const auto& c : board.dac) dac_values.emplace_back(c);
+  bool first = true;
+  std::uint64_t sim_faults = 0;
+  auto frontend = [&](const std::vector<std::uint32_t>& dac, std::vector<std::uint32_t>& adc) {
+    if (!first) {
+      // One period under the DAC values latched so far, then the sample.
+      for (std::size_t i = 0; i < dac.size(); ++i) sim.input("command")[i] = dac_values[i].code_to_value(dac[i]);
+      if (sim.write() != lode::StepStatus::ok) ++sim_faults;
+    }
+    first = false;
+    if (sim.step() != lode::StepStatus::ok) ++sim_faults;
+    const auto volts = sim.output("signals");
+    for (std::size_t i = 0; i < adc.size(); ++i) {
+      bool clipped = false;
+      adc[i] = adc_volts[i].value_to_code(volts[i], clipped);
+    }
+  };
+  auto emulator = lode::vme::PentekEmulator::create(board.device, board.offset, board.adc.size(), board.dac.size(), frontend);
+  if (!emulator) {
+    std::fprintf(stderr, "lode-vme-emu: %s\n", emulator.error().c_str());
+    return kExitConfig;
+  }
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+  std::printf("lode-vme-emu: serving %s @ 0x%llx (%zu ADC, %zu DAC channels), plant from io.sim '%s' of %s\n",
+              board.device.c_str(), static_cast<unsigned long long>(board.offset), board.adc.size(), board.dac.size(),
+              block.c_str(), sim_file.c_str());
+  std::fflush(stdout);
+  auto& e = **emulator;
+  while (!g_stop.load()) {
+    if (!e.poll() && !spin) std::this_thread::sleep_for(std::chrono::microseconds(10));
+  }
+  std::printf("lode-vme-emu: stopped after %llu conversions, %llu DAC loads, %llu plant faults\n",
+              static_cast<unsigned long long>(e.conversions()), static_cast<unsigned long long>(e.dac_loads()),
+              static_cast<unsigned long long>(sim_faults));
+  return 0;
+}

@@ -1,0 +1,114 @@
+#!/usr/bin/env bash
+# kawato_planar closed loop through io.vme_pentek and the board emulator (issue 6), with
+# separate processes: lode-vme-emu plays the board on a shared file, its plant the io.sim
+# block of config/kawato_planar.yaml; `lode run config/kawato_planar_vme.yaml` drives it over
+# the register interface. Checks:
+#  1. the closed loop gives the same estimates as the io.sim run within quantization (the
+#     DAC's 16-bit codes quantize the forces), and at the end the DAC registers hold the safe
+#     codes;
+#  2. the emulator stops answering (SIGSTOP) mid-run: the run faults with the reason, exit 1,
+#     and the DAC registers hold the safe codes with DAC_LOAD rung;
+#  3. SIGTERM stops the emulator cleanly.
+# usage: vme_closed_loop_test.sh LODE LODE_VME_EMU SRC
+set -u
+PY=python3; [ -x /usr/bin/python3 ] && PY=/usr/bin/python3
+LODE=$1 EMU=$2 SRC=$3
+TMP=$(mktemp -d)
+PIDS=()
+cleanup() {
+  for p in "${PIDS[@]}"; do kill -CONT "$p" 2>/dev/null; kill "$p" 2>/dev/null; done
+  wait 2>/dev/null
+  rm -rf "$TMP"
+}
+trap cleanup EXIT
+fail=0
+ok() { echo "ok: $1"; }
+bad() { echo "FAIL: $1"; fail=1; }
+check_rc() { if [ "$2" = "$3" ]; then ok "$1"; else bad "$1: exit code $3, expected $2"; sed 's/^/    /' "$4" | tail -20; fi; }
+contains() { if grep -qE "$3" "$2"; then ok "$1"; else bad "$1: no /$3/ in $2:"; sed 's/^/    /' "$2" | tail -20; fi; }
+
+WINDOW=$TMP/window
+# The emulator is a process sharing two loaded cores with the rest of ctest: it may be off the
+# CPU for milliseconds, so the conversion timeout is generous here (a board needs ~10 us).
+sed -e "s#device: /dev/shm/lode-vme-kawato#device: $WINDOW#" \
+    -e "s/conversion_timeout_us: [0-9]*/conversion_timeout_us: 300000/" \
+    "$SRC/config/kawato_planar_vme.yaml" >"$TMP/vme.yaml"
+
+start_emulator() {
+  "$EMU" "$TMP/vme.yaml" --sim "$SRC/config/kawato_planar.yaml" >"$TMP/emu.out" 2>&1 &
+  EMU_PID=$!
+  PIDS+=($EMU_PID)
+  for _ in $(seq 1 100); do grep -q "serving" "$TMP/emu.out" && return 0; sleep 0.1; done
+  bad "emulator did not start"; cat "$TMP/emu.out"; return 1
+}
+
+# DAC_DATA[i] (0x200 + 4i) and DAC_LOAD (0x014) as the register window holds them now.
+dac_registers() {
+  $PY - "$WINDOW" <<'PY'
+import sys, struct
+w = open(sys.argv[1], "rb").read()
+u32 = lambda off: struct.unpack_from("<I", w, off)[0]
+print("dac", " ".join("%d" % u32(0x200 + 4 * i) for i in range(3)), "load", u32(0x014))
+PY
+}
+
+# 1. Closed loop, compared with io.sim.
+start_emulator || exit 1
+"$LODE" run "$TMP/vme.yaml" --no-telemetry --no-local-control --quiet --record "$TMP/vme.h5" \
+  --summary-json "$TMP/vme.json" >"$TMP/vme.out" 2>&1
+check_rc "closed loop through the VME emulator" 0 $? "$TMP/vme.out"
+dac_registers >"$TMP/dac_end.txt"
+contains "after the run the DAC registers hold the safe codes" "$TMP/dac_end.txt" "^dac 0 0 0 load"
+"$LODE" run "$SRC/config/kawato_planar.yaml" --no-telemetry --no-local-control --quiet --record "$TMP/sim.h5" \
+  >"$TMP/sim.out" 2>&1
+check_rc "the same pipeline through io.sim" 0 $? "$TMP/sim.out"
+$PY - "$TMP/vme.h5" "$TMP/sim.h5" <<'PY' || bad "VME and io.sim runs differ beyond quantization"
+import sys, h5py, numpy as np
+vme, sim = h5py.File(sys.argv[1], "r"), h5py.File(sys.argv[2], "r")
+def series(f, sig):
+    g = f["signals/" + sig]
+    return np.column_stack([g[n][:] for n in g.attrs["names"]])
+n = min(len(series(vme, "kf.pose")), len(series(sim, "kf.pose")))
+assert n >= 2400, n
+d = np.abs(series(vme, "kf.pose")[:n] - series(sim, "kf.pose")[:n])
+s = np.abs(series(vme, "stage.signals")[:n] - series(sim, "stage.signals")[:n])
+lsb = 20.0 / 65536
+print("kf.pose max |VME - io.sim|: x %.3g m, y %.3g m, theta_z %.3g rad over %d cycles" % (d[:, 0].max(), d[:, 1].max(), d[:, 2].max(), n))
+print("stage.signals max |VME - io.sim| %.3g V (%.2f LSB); samples that differ: %d of %d" % (s.max(), s.max() / lsb, int((s > 0).sum()), s.size))
+ctrl_v = series(vme, "ctrl.out")[:n]
+print("forces: max |fx| %.3g N, |fy| %.3g N, |tz| %.3g N*m" % tuple(np.abs(ctrl_v).max(axis=0)))
+# The ADC path is the same converter and the same noise; the DAC's 16-bit codes quantize the
+# forces, the plant moves a little differently, and now and then a Hall sample lands one code
+# away. Within quantization means: ADC samples at most one code apart, and the estimates apart
+# by less than the single-sample noise of the GLSDC pose (what one code's flip moves it by is
+# a fraction of that).
+noise = np.std(series(sim, "glsdc.pose")[:n] - series(sim, "stage.truth")[:n], axis=0)
+print("GLSDC single-sample noise std (io.sim run): x %.3g m, y %.3g m, theta_z %.3g rad" % tuple(noise))
+print("max difference / noise std: %.2f %.2f %.2f" % tuple(d.max(axis=0) / noise))
+assert (d.max(axis=0) < noise).all(), (d.max(axis=0), noise)
+assert s.max() <= lsb + 1e-12, s.max()
+PY
+
+# 2. The emulator stops answering mid-run.
+sed -e "s/^duration_s: .*/duration_s: 60.0/" "$TMP/vme.yaml" >"$TMP/vme_long.yaml"
+"$LODE" run "$TMP/vme_long.yaml" --no-telemetry --no-local-control --quiet --summary-json "$TMP/stall.json" \
+  >"$TMP/stall.out" 2>&1 &
+RUN=$!
+PIDS+=($RUN)
+sleep 1
+kill -0 $RUN 2>/dev/null || { bad "the 60 s run ended before the emulator was stopped"; cat "$TMP/stall.out"; }
+kill -STOP $EMU_PID
+wait $RUN
+check_rc "a silent board faults the run" 1 $? "$TMP/stall.out"
+contains "the fault names the board and why" "$TMP/stall.out" "FAULT: stage.read: .*within conversion_timeout_us"
+dac_registers >"$TMP/dac_stall.txt"
+contains "outputs driven safe: safe codes written and DAC_LOAD rung" "$TMP/dac_stall.txt" "^dac 0 0 0 load 1"
+kill -CONT $EMU_PID
+
+# 3. SIGTERM stops the emulator.
+kill -TERM $EMU_PID
+wait $EMU_PID
+check_rc "emulator exits on SIGTERM" 0 $? "$TMP/emu.out"
+contains "emulator reports what it served" "$TMP/emu.out" "stopped after [0-9]+ conversions"
+[ $fail -eq 0 ] && echo PASS
+exit $fail
