@@ -8,7 +8,8 @@
 #     codes;
 #  2. the emulator stops answering (SIGSTOP) mid-run: the run faults with the reason, exit 1,
 #     and the DAC registers hold the safe codes with DAC_LOAD rung;
-#  3. SIGTERM stops the emulator cleanly.
+#  3. SIGTERM to lode run mid-run stops it cleanly with the DAC outputs at their safe codes;
+#  4. SIGTERM stops the emulator cleanly.
 # usage: vme_closed_loop_test.sh LODE LODE_VME_EMU SRC
 set -u
 PY=python3; [ -x /usr/bin/python3 ] && PY=/usr/bin/python3
@@ -103,9 +104,26 @@ check_rc "a silent board faults the run" 1 $? "$TMP/stall.out"
 contains "the fault names the board and why" "$TMP/stall.out" "FAULT: stage.read: .*within conversion_timeout_us"
 dac_registers >"$TMP/dac_stall.txt"
 contains "outputs driven safe: safe codes written and DAC_LOAD rung" "$TMP/dac_stall.txt" "^dac 0 0 0 load 1"
-kill -CONT $EMU_PID
 
-# 3. SIGTERM stops the emulator.
+# 3. SIGTERM to lode run mid-run: it stops cleanly and the DAC outputs go to their safe codes.
+# Non-zero safe values here, so "safe" cannot be mistaken for registers never written.
+kill -CONT $EMU_PID
+sed -e "s/gain: 10.0, unit: N, safe_value: 0.0 }/gain: 10.0, unit: N, safe_value: 1.5 }/" "$TMP/vme_long.yaml" \
+  >"$TMP/vme_term.yaml"
+"$LODE" run "$TMP/vme_term.yaml" --no-telemetry --no-local-control --quiet >"$TMP/term.out" 2>&1 &
+RUN=$!
+PIDS+=($RUN)
+sleep 1
+kill -0 $RUN 2>/dev/null || { bad "the 60 s run ended before SIGTERM"; cat "$TMP/term.out"; }
+kill -TERM $RUN
+wait $RUN
+check_rc "lode run stops on SIGTERM" 0 $? "$TMP/term.out"
+sleep 0.2  # the emulator latches the last DAC_LOAD
+dac_registers >"$TMP/dac_term.txt"
+# 1.5 N at 10 N/V = 0.15 V = code 492 (nearest of 491.52); tz stays 0.
+contains "after SIGTERM the DAC outputs hold the safe codes, latched" "$TMP/dac_term.txt" "^dac 492 492 0 load 0"
+
+# 4. SIGTERM stops the emulator.
 kill -TERM $EMU_PID
 wait $EMU_PID
 check_rc "emulator exits on SIGTERM" 0 $? "$TMP/emu.out"
