@@ -1,3 +1,4 @@
+#include "lode/clock.hpp"
 #include "lode/hot_swap.hpp"
 
 #include <yaml-cpp/yaml.h>
@@ -19,12 +20,6 @@ namespace lode {
 using namespace pipeline_detail;
 
 namespace {
-
-std::int64_t monotonic_ns() noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 std::string number(double v) {
   char buf[32];

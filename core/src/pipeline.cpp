@@ -1,3 +1,4 @@
+#include "lode/clock.hpp"
 #include "lode/pipeline.hpp"
 
 #include <arpa/inet.h>
@@ -34,12 +35,6 @@ const std::vector<std::string> kPipelineBlockKeys = {"plugin", "inputs", "shadow
 /// Outputs the pipeline adds to every shadow role.
 constexpr const char* kDisagreementPort = "disagreement";
 constexpr const char* kNisPort = "nis";
-
-std::int64_t monotonic_ns() noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 
 std::string element_list(const Elements& e) {

@@ -1,3 +1,4 @@
+#include "lode/clock.hpp"
 #include "lode/telemetry.hpp"
 
 #include <time.h>
@@ -32,11 +33,6 @@ std::size_t ring_capacity(const TelemetrySpec& spec, double rate_hz) {
   return std::max<std::size_t>(1024, static_cast<std::size_t>(rate_hz) + 1);
 }
 
-std::int64_t monotonic_ns() noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);  // vDSO: no system call
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 }  // namespace
 
 TelemetryTap::TelemetryTap(const TelemetrySpec& spec, double pipeline_rate_hz) {

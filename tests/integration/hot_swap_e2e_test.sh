@@ -7,21 +7,8 @@
 # events topic (`lode echo events`), and the run summary's swap count.
 # usage: hot_swap_e2e_test.sh LODE SRC DOMAIN
 set -u
-PY=python3; [ -x /usr/bin/python3 ] && PY=/usr/bin/python3  # the Debian interpreter has h5py
 LODE=$1 SRC=$2 DOMAIN=$3
-TMP=$(mktemp -d)
-PIDS=()
-cleanup() {
-  for p in "${PIDS[@]}"; do kill "$p" 2>/dev/null; done
-  wait 2>/dev/null
-  rm -rf "$TMP"
-}
-trap cleanup EXIT
-fail=0
-ok() { echo "ok: $1"; }
-bad() { echo "FAIL: $1"; fail=1; }
-check_rc() { if [ "$2" = "$3" ]; then ok "$1"; else bad "$1: exit code $3, expected $2"; sed 's/^/    /' "$4" | tail -20; fi; }
-contains() { if grep -qE "$3" "$2"; then ok "$1"; else bad "$1: no /$3/ in $2:"; sed 's/^/    /' "$2" | tail -20; fi; }
+source "$(dirname "$0")/test_lib.sh"
 
 # Own domain; no SCHED_FIFO (CI shares two cores); long enough for the commands below.
 sed -e "s/^  domain: 0/  domain: $DOMAIN/" -e "s/^realtime: .*/realtime: { overrun_policy: skip }/" \

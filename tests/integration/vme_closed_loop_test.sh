@@ -12,21 +12,8 @@
 #  4. SIGTERM stops the emulator cleanly.
 # usage: vme_closed_loop_test.sh LODE LODE_VME_EMU SRC
 set -u
-PY=python3; [ -x /usr/bin/python3 ] && PY=/usr/bin/python3
 LODE=$1 EMU=$2 SRC=$3
-TMP=$(mktemp -d)
-PIDS=()
-cleanup() {
-  for p in "${PIDS[@]}"; do kill -CONT "$p" 2>/dev/null; kill "$p" 2>/dev/null; done
-  wait 2>/dev/null
-  rm -rf "$TMP"
-}
-trap cleanup EXIT
-fail=0
-ok() { echo "ok: $1"; }
-bad() { echo "FAIL: $1"; fail=1; }
-check_rc() { if [ "$2" = "$3" ]; then ok "$1"; else bad "$1: exit code $3, expected $2"; sed 's/^/    /' "$4" | tail -20; fi; }
-contains() { if grep -qE "$3" "$2"; then ok "$1"; else bad "$1: no /$3/ in $2:"; sed 's/^/    /' "$2" | tail -20; fi; }
+source "$(dirname "$0")/test_lib.sh"
 
 WINDOW=$TMP/window
 # The emulator is a process sharing two loaded cores with the rest of ctest: it may be off the

@@ -1,9 +1,9 @@
 #include "socketcan_daq.hpp"
 
-#include <time.h>
 
 #include <cmath>
 
+#include "lode/clock.hpp"
 #include "lode/plugin.hpp"
 #include "lode/units.hpp"
 
@@ -36,12 +36,6 @@ std::int64_t count_of(const co::PdoEntry& entry, const Channel& channel, double 
 }  // namespace can_daq
 
 namespace {
-
-std::int64_t monotonic_ns() noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 std::vector<can_daq::Pdo> parse_pdos(Params& params, const char* key, bool output) {
   std::vector<can_daq::Pdo> out;

@@ -1,10 +1,10 @@
 #include "vme_pentek.hpp"
 
-#include <time.h>
 
 #include <cmath>
 #include <cstdio>
 
+#include "lode/clock.hpp"
 #include "lode/plugin.hpp"
 #include "lode/units.hpp"
 #include "register_map.hpp"
@@ -12,12 +12,6 @@
 namespace lode::plugins {
 
 namespace {
-
-std::int64_t monotonic_ns() noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 std::string hex(std::uint64_t v) {
   char buf[32];
