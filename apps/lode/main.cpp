@@ -40,6 +40,7 @@ using lode::cli::kExitOk;
 const char* kUsage = R"(usage: lode <command> [options]
 
   run CONFIG [--duration S] [--clock sim|real] [--summary-json FILE] [--quiet]
+                       (default clock: the pipeline's realtime.clock, else sim)
              [--record FILE.h5] [--domain N] [--no-telemetry] [--wait-subscribers N [--wait S]]
              [--speed X]   (simulated clock: at most X times real time)
              [--no-local-control]
@@ -392,8 +393,9 @@ lode::Json timing_json(const lode::Pipeline& p, const lode::Scheduler& s, const 
 }
 
 int cmd_run(const Args& args) {
-  const std::string clock_name = args.options.count("--clock") ? args.options.at("--clock") : "sim";
-  if (clock_name != "sim" && clock_name != "real") {
+  // Without --clock, the pipeline's realtime.clock (sim unless it drives hardware).
+  std::string clock_name = args.options.count("--clock") ? args.options.at("--clock") : "";
+  if (!clock_name.empty() && clock_name != "sim" && clock_name != "real") {
     std::fprintf(stderr, "lode: --clock must be sim or real, got '%s'\n", clock_name.c_str());
     return kExitConfig;
   }
@@ -402,6 +404,7 @@ int cmd_run(const Args& args) {
   if (!loaded) return kExitConfig;
   auto& p = loaded->pipeline;
   const std::string& config = loaded->path;
+  if (clock_name.empty()) clock_name = p->realtime().real_clock ? "real" : "sim";
   double duration = p->default_duration_s().value_or(10.0);
   if (args.options.count("--duration")) {
     char* end = nullptr;

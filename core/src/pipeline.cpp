@@ -295,6 +295,7 @@ void Pipeline::Impl::parse_realtime(const YAML::Node& rt) {
   realtime.spin_us = p.integer("spin_us", 0);
   p.check(realtime.spin_us >= 0 && realtime.spin_us <= 1'000'000, "spin_us",
           "busy-wait before each deadline must be 0..1000000 us, got " + std::to_string(realtime.spin_us));
+  realtime.real_clock = p.choice("clock", {"sim", "real"}, "sim") == "real";
   detail::report_unread_keys(p);
 }
 
@@ -1528,6 +1529,7 @@ Json Pipeline::describe() const {
                                                                                  : "skip";
   rt["max_overruns"] = im.realtime.max_overruns;
   rt["spin_us"] = im.realtime.spin_us;
+  rt["clock"] = im.realtime.real_clock ? "real" : "sim";
   j["realtime"] = std::move(rt);
   if (impl_->telemetry.enabled) {
     const auto& t = impl_->telemetry;

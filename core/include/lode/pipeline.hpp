@@ -34,6 +34,9 @@ struct RealtimeSettings {
   /// On hosts whose idle CPUs lose their caches or wake slowly (VMs, deep C-states) this cuts
   /// wake-up latency and keeps the cycle's data cached, at the price of a busier CPU.
   std::int64_t spin_us = 0;
+  /// The clock `lode run` uses unless --clock says: simulated (as fast as the host computes)
+  /// or real (periodic on CLOCK_MONOTONIC). Pipelines with hardware boards say real.
+  bool real_clock = false;
 };
 
 struct SignalRef {
