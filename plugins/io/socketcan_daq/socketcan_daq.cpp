@@ -299,7 +299,9 @@ void SocketCanDaq::describe(Json& out) const {
         e["bits"] = static_cast<double>(p.mapping.entries[k].bits);
         e["signed"] = p.mapping.entries[k].is_signed;
         e["scale"] = p.channels[k].scale;
+        e["offset"] = p.channels[k].offset;
         e["unit"] = p.channels[k].unit;
+        if (!transmit) e["safe_value"] = p.channels[k].safe_value;
         entries.push(std::move(e));
       }
       j["entries"] = std::move(entries);
