@@ -1,0 +1,24 @@
+#!/bin/busybox sh
+# /init of the QEMU guest (tests/qemu/can_qemu_test.sh): bring up vcan0 on a stock Debian
+# kernel, run the guest tests, hand their results to the host on the second serial port as a
+# tar stream, power off. The first serial port is the console the host reads.
+/bin/busybox --install -s /bin
+export PATH=/bin:/sbin:/usr/bin
+mount -t proc proc /proc
+mount -t sysfs sys /sys
+mount -t devtmpfs dev /dev
+mkdir -p /tmp /dev/shm && mount -t tmpfs tmp /tmp && mount -t tmpfs shm /dev/shm
+echo "GUEST: kernel $(uname -r), $(grep -c ^processor /proc/cpuinfo) CPU, up $(cut -d' ' -f1 /proc/uptime) s"
+if modprobe vcan && modprobe can-raw && ip link add dev vcan0 type vcan && ip link set up vcan0; then
+  echo "GUEST: vcan0 up"
+  sh /guest/guest_tests.sh
+  echo "GUEST_TESTS_RC=$?"
+else
+  echo "GUEST: cannot bring up vcan0"
+  echo "GUEST_TESTS_RC=99"
+fi
+stty -F /dev/ttyS1 raw -echo 2>/dev/null
+tar cf /dev/ttyS1 -C /out . 2>/dev/null
+echo "GUEST_DONE up $(cut -d' ' -f1 /proc/uptime) s"
+echo o > /proc/sysrq-trigger
+sleep 5
