@@ -7,10 +7,12 @@
 #include <net/if.h>
 #include <poll.h>
 #include <sys/socket.h>
+#include <sys/uio.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstring>
+#include <ctime>
 
 namespace lode::hal {
 
@@ -65,6 +67,10 @@ Expected<CanSocket> CanSocket::open(const std::string& interface, const std::vec
     if (bind(s.fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0)
       return Status::error("CAN interface '" + interface + "': bind: " + std::strerror(errno));
   }
+  // Receive timestamps: the bus-side arrival time, apart from how late the reader ran. Also on
+  // an adopted descriptor (AF_UNIX datagrams are timestamped the same way); harmless if refused.
+  const int on = 1;
+  (void)setsockopt(s.fd_, SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on);
   const int flags = fcntl(s.fd_, F_GETFL);
   if (flags < 0 || fcntl(s.fd_, F_SETFL, flags | O_NONBLOCK) != 0)
     return Status::error("CAN interface '" + interface + "': non-blocking mode: " + std::strerror(errno));
@@ -80,6 +86,8 @@ Expected<std::pair<CanSocket, CanSocket>> CanSocket::pair() {
   p.first.name_ = "fd:" + std::to_string(fds[0]);
   p.second.fd_ = fds[1];
   p.second.name_ = "fd:" + std::to_string(fds[1]);
+  const int on = 1;
+  for (const int fd : fds) (void)setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on);
   return p;
 }
 
@@ -91,7 +99,14 @@ bool CanSocket::send(const CanFrame& frame) noexcept {
 
 CanSocket::Receive CanSocket::receive(CanFrame& frame, const char*& why) noexcept {
   std::uint8_t bytes[kCanFrameBytes + 64];  // room to see an oversized datagram as such
-  const ssize_t n = ::recv(fd_, bytes, sizeof bytes, MSG_DONTWAIT);
+  alignas(cmsghdr) std::uint8_t control[CMSG_SPACE(sizeof(timespec))];
+  iovec iov{bytes, sizeof bytes};
+  msghdr msg{};
+  msg.msg_iov = &iov;
+  msg.msg_iovlen = 1;
+  msg.msg_control = control;
+  msg.msg_controllen = sizeof control;
+  const ssize_t n = ::recvmsg(fd_, &msg, MSG_DONTWAIT);
   if (n < 0) {
     if (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) return Receive::none;
     why = "CAN socket receive failed";
@@ -102,6 +117,14 @@ CanSocket::Receive CanSocket::receive(CanFrame& frame, const char*& why) noexcep
     return Receive::failed;
   }
   why = decode_can_frame(bytes, static_cast<std::size_t>(n), frame);
+  frame.timestamp_ns = 0;
+  for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c != nullptr; c = CMSG_NXTHDR(&msg, c)) {
+    if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SCM_TIMESTAMPNS && c->cmsg_len >= CMSG_LEN(sizeof(timespec))) {
+      timespec ts{};
+      std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
+      frame.timestamp_ns = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+    }
+  }
   return why ? Receive::malformed : Receive::frame;
 }
 

@@ -3,10 +3,14 @@
 #include <linux/can.h>
 #include <linux/can/error.h>
 
+#include <chrono>
 #include <cstring>
 #include <string>
+#include <thread>
 
 #include "lode/hal/can_frame.hpp"
+#include "lode/clock.hpp"
+#include "lode/hal/can_socket.hpp"
 #include "lode/hal/canopen.hpp"
 
 namespace {
@@ -163,3 +167,25 @@ TEST(CanOpen, MalformedPdosAndMappingsAreRefused) {
 }
 
 }  // namespace
+
+// A frame carries the kernel's receive time (SO_TIMESTAMPNS, CLOCK_REALTIME): after the send,
+// before the read, and not the time of the read when the reader comes late.
+TEST(CanSocket, FramesCarryTheKernelReceiveTime) {
+  auto bus = lode::hal::CanSocket::pair();
+  ASSERT_TRUE(bus) << bus.error();
+  auto& [a, b] = *bus;
+  lode::hal::CanFrame sent;
+  sent.id = 0x185;
+  sent.length = 2;
+  const std::int64_t before = lode::realtime_ns();
+  ASSERT_TRUE(a.send(sent));
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  const std::int64_t read_at = lode::realtime_ns();
+  lode::hal::CanFrame got;
+  const char* why = nullptr;
+  ASSERT_EQ(b.receive(got, why), lode::hal::CanSocket::Receive::frame) << (why ? why : "");
+  EXPECT_EQ(got.id, 0x185u);
+  EXPECT_GE(got.timestamp_ns, before);
+  EXPECT_LT(got.timestamp_ns, read_at) << "the time the frame arrived, not the time it was read";
+  EXPECT_GT(read_at - got.timestamp_ns, 15'000'000) << "sent 20 ms before the read";
+}

@@ -1,6 +1,7 @@
 #include "socketcan_daq.hpp"
 
 
+#include <algorithm>
 #include <cmath>
 
 #include "lode/clock.hpp"
@@ -119,6 +120,7 @@ Status SocketCanDaq::activate() {
   received_.store(0);
   complete_.store(0);
   emcy_code_.store(0);
+  sync_to_tpdo_.reset();
   // Outputs to their safe values first, then start the node and wait for it to say so.
   send_rpdos(true);
   if (!socket_.send(co::nmt_frame(co::NmtCommand::start, node_)))
@@ -189,7 +191,9 @@ StepStatus SocketCanDaq::step(const Tick& /*tick*/) noexcept {
     if (const char* reason = supervise(f, now)) return fault(reason);
   }
   if (now - last_heartbeat_ns_ > heartbeat_timeout_ns_) return fault("heartbeat lost: none within heartbeat_timeout_ms");
+  const std::int64_t sync_sent_ns = realtime_ns();  // the receive timestamps' clock
   if (!socket_.send(co::sync_frame())) return fault("CAN send refused (bus down or queue full)");
+  std::int64_t last_tpdo_ns = 0;
   for (auto& s : tpdo_seen_) s = 0;
   std::size_t remaining = tpdo_.size();
   const std::int64_t deadline = now + pdo_timeout_ns_;
@@ -213,6 +217,7 @@ StepStatus SocketCanDaq::step(const Tick& /*tick*/) noexcept {
           if (!tpdo_seen_[i]) {
             tpdo_seen_[i] = 1;
             --remaining;
+            last_tpdo_ns = std::max(last_tpdo_ns, f.timestamp_ns);
           }
           break;
         }
@@ -227,6 +232,7 @@ StepStatus SocketCanDaq::step(const Tick& /*tick*/) noexcept {
     socket_.wait_readable(deadline - now);
   }
   complete_.fetch_add(1, std::memory_order_relaxed);
+  if (last_tpdo_ns > 0) sync_to_tpdo_.record(last_tpdo_ns - sync_sent_ns);
   return StepStatus::ok;
 }
 
@@ -314,6 +320,9 @@ void SocketCanDaq::describe(Json& out) const {
   out["frames_received"] = static_cast<double>(frames_received());
   out["complete_cycles"] = static_cast<double>(complete_cycles());
   out["last_emergency_code"] = static_cast<double>(last_emergency_code());
+  // Kernel receive time of the cycle's last TPDO minus the SYNC's send time: the module's and
+  // the bus's latency, without this thread's wake-up and scheduling delays.
+  out["sync_to_tpdo_us"] = sync_to_tpdo_.summary_us();
 }
 
 namespace {

@@ -30,6 +30,7 @@
 
 #include "daq_mapping.hpp"
 #include "lode/block.hpp"
+#include "lode/histogram.hpp"
 #include "lode/hal/can_socket.hpp"
 
 namespace lode::plugins {
@@ -47,6 +48,8 @@ class SocketCanDaq final : public Block {
   /// Frames this block received and sent since activate(), and SYNC cycles whose TPDOs all came.
   [[nodiscard]] std::uint64_t frames_received() const noexcept { return received_.load(std::memory_order_relaxed); }
   [[nodiscard]] std::uint64_t complete_cycles() const noexcept { return complete_.load(std::memory_order_relaxed); }
+  /// SYNC sent -> the cycle's last TPDO received by the kernel, per complete cycle.
+  [[nodiscard]] const Histogram& sync_to_tpdo() const noexcept { return sync_to_tpdo_; }
   [[nodiscard]] std::uint16_t last_emergency_code() const noexcept { return emcy_code_.load(std::memory_order_relaxed); }
 
  private:
@@ -66,6 +69,9 @@ class SocketCanDaq final : public Block {
   std::vector<std::uint8_t> tpdo_seen_;      // per TPDO, this cycle
   std::vector<std::int64_t> raw_;            // scratch: one PDO's counts
   std::atomic<std::uint64_t> received_{0}, complete_{0};
+  /// SYNC sent to the cycle's last TPDO taken off the bus (kernel receive timestamp): the
+  /// module's and the bus's share of the read phase, apart from this thread's scheduling.
+  Histogram sync_to_tpdo_;
   std::atomic<std::uint16_t> emcy_code_{0};
 
   InputPort command_;

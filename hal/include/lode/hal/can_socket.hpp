@@ -1,6 +1,7 @@
 // A CAN socket for the backends (hal/, issue 6): SocketCAN CAN_RAW bound to an interface
-// (vcan0, can0) with receive filters and error frames enabled, non-blocking; or, for tests
-// and emulators, one end of a connected socket pair carrying `struct can_frame` datagrams.
+// (vcan0, can0) with receive filters, error frames and kernel receive timestamps enabled,
+// non-blocking; or, for tests and emulators, one end of a connected socket pair carrying
+// `struct can_frame` datagrams (timestamped too).
 //
 //   auto s = CanSocket::open("vcan0", {{0x185, 0x7ff}});   // id, mask
 //   s->send(sync);                                           // RT path: no allocation
@@ -44,7 +45,9 @@ class CanSocket {
   /// False when the frame could not be queued (the bus is down, the queue is full).
   bool send(const CanFrame& frame) noexcept;
   enum class Receive { frame, none, malformed, failed };
-  /// One frame if one is waiting. `malformed`: bytes that are no CAN frame (why says how).
+  /// One frame if one is waiting, with the kernel's receive time in frame.timestamp_ns (when
+  /// it took the frame off the bus, not when we read it). `malformed`: bytes that are no CAN
+  /// frame (why says how).
   Receive receive(CanFrame& frame, const char*& why) noexcept;
   /// Wait until a frame is waiting or `timeout_ns` passed; false on timeout.
   bool wait_readable(std::int64_t timeout_ns) noexcept;
