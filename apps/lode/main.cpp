@@ -20,6 +20,7 @@
 #include "analysis.hpp"
 #include "cli.hpp"
 #include "run_services.hpp"
+#include "lode/crash_guard.hpp"
 #include "lode/event_log.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
@@ -522,6 +523,8 @@ int cmd_run(const Args& args) {
       status_line(false);
     }
   };
+  // A bug that kills the process (SIGSEGV, an exception out of step()) still drives the outputs safe.
+  lode::CrashGuard crash_guard(*p);
   const auto outcome = lode::cli::execute_run(
       *p, sched, events, **services, cycles,
       "pipeline '" + p->name() + "' at " + std::to_string(p->rate_hz()) + " Hz, " + clock_name + " clock, " +

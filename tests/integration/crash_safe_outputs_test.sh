@@ -1,0 +1,69 @@
+#!/usr/bin/env bash
+# A crash of the pipeline's process drives the outputs safe (issue 6). kawato_planar runs
+# closed loop through io.vme_pentek against lode-vme-emu with non-zero safe values; a block
+# with a bug (tests/core/bad_plugins/crashes_in_step.cpp) kills `lode run` mid-run:
+#  1. a write through a null pointer: lode dies of SIGSEGV (exit status 139 as before), says
+#     the outputs were driven safe, and the DAC registers hold the safe codes, latched;
+#  2. an exception escaping the noexcept step() (std::terminate -> SIGABRT): the same.
+# usage: crash_safe_outputs_test.sh LODE LODE_VME_EMU SRC BAD_PLUGIN_DIR
+set -u
+LODE=$1 EMU=$2 SRC=$3 BAD_PLUGINS=$4
+source "$(dirname "$0")/test_lib.sh"
+export LODE_PLUGIN_PATH="${LODE_PLUGIN_PATH:-}:$BAD_PLUGINS"
+
+WINDOW=$TMP/window
+# 60 s, so nothing but the crash ends the run; 1.5 N safe forces (code 492), so "safe" cannot
+# be mistaken for registers never written. The emulator may be off the CPU for a while here.
+sed -e "s#device: /dev/shm/lode-vme-kawato#device: $WINDOW#" \
+    -e "s/conversion_timeout_us: [0-9]*/conversion_timeout_us: 300000/" \
+    -e "s/^duration_s: .*/duration_s: 60.0/" \
+    -e "s/gain: 10.0, unit: N, safe_value: 0.0 }/gain: 10.0, unit: N, safe_value: 1.5 }/" \
+    "$SRC/config/kawato_planar_vme.yaml" >"$TMP/vme.yaml"
+# The faulty block, one per way of crashing, at cycle 800 (1 s at 800 Hz).
+with_crash() {  # with_crash HOW OUT
+  $PY - "$TMP/vme.yaml" "$1" >"$2" <<'PY'
+import sys
+text = open(sys.argv[1]).read()
+block = "  buggy:\n    plugin: test.crashes_in_step\n    at_cycle: 800\n    how: %s\n\n" % sys.argv[2]
+assert "\nmonitor:" in text
+print(text.replace("\nmonitor:", "\n" + block + "monitor:", 1), end="")
+PY
+}
+with_crash segv "$TMP/segv.yaml"
+with_crash throw "$TMP/throw.yaml"
+"$LODE" check "$TMP/segv.yaml" >"$TMP/check.out" 2>&1
+check_rc "the pipeline with the faulty block is valid" 0 $? "$TMP/check.out"
+
+"$EMU" "$TMP/vme.yaml" --sim "$SRC/config/kawato_planar.yaml" >"$TMP/emu.out" 2>&1 &
+EMU_PID=$!
+PIDS+=($EMU_PID)
+for _ in $(seq 1 100); do grep -q "serving" "$TMP/emu.out" && break; sleep 0.1; done
+grep -q "serving" "$TMP/emu.out" || { bad "emulator did not start"; cat "$TMP/emu.out"; exit 1; }
+
+# DAC_DATA[0..2] and DAC_LOAD as the register window holds them now.
+dac_registers() {
+  $PY - "$WINDOW" <<'PY'
+import sys, struct
+w = open(sys.argv[1], "rb").read()
+u32 = lambda off: struct.unpack_from("<I", w, off)[0]
+print("dac", " ".join("%d" % u32(0x200 + 4 * i) for i in range(3)), "load", u32(0x014))
+PY
+}
+
+crash_run() {  # crash_run NAME EXPECTED_RC SIGNAL_NAME
+  (ulimit -c 0; exec "$LODE" run "$TMP/$1.yaml" --no-telemetry --no-local-control --quiet) >"$TMP/$1.out" 2>&1
+  check_rc "$1: lode run dies of $3" "$2" $? "$TMP/$1.out"
+  contains "$1: it says the outputs were driven safe" "$TMP/$1.out" "lode: $3: .*outputs driven to their safe values"
+  sleep 0.2  # the emulator latches the last DAC_LOAD
+  dac_registers >"$TMP/dac_$1.txt"
+  # 1.5 N at 10 N/V = 0.15 V = code 492 (nearest of 491.52); tz's safe value is 0.
+  contains "$1: the DAC outputs hold the safe codes, latched" "$TMP/dac_$1.txt" "^dac 492 492 0 load 0"
+}
+crash_run segv 139 SIGSEGV
+crash_run throw 134 SIGABRT
+
+kill -TERM $EMU_PID
+wait $EMU_PID
+check_rc "emulator exits on SIGTERM" 0 $? "$TMP/emu.out"
+[ $fail -eq 0 ] && echo PASS
+exit $fail
