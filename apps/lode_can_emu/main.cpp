@@ -15,6 +15,9 @@
 //
 // --fault injects one of the module faults of the tests (heartbeat_lost, malformed_pdo,
 // bus_off, emergency, silent) after N SYNCs (SIGSTOP makes the process really silent).
+// --sync-watchdog-ms (default 100, 0 off): operational and no SYNC for that long, the module
+// drives its outputs to the RPDO entries' safe values on its own and goes pre-operational, as
+// a module configured for it does when its master dies without a word (SIGKILL, power).
 // Stops on SIGINT/SIGTERM and prints what it served and the outputs it holds. Exit codes:
 // 0 stopped, 2 configuration error.
 #include <yaml-cpp/yaml.h>
@@ -39,7 +42,7 @@ constexpr int kExitConfig = 2;
 constexpr const char* kUsage =
     "usage: lode-can-emu BOARD.yaml --sim SIM.yaml [--block NAME] [--interface IF]\n"
     "                    [--fault heartbeat_lost|malformed_pdo|bus_off|emergency|silent --fault-after-syncs N]\n"
-    "                    [--heartbeat-ms MS]\n";
+    "                    [--heartbeat-ms MS] [--sync-watchdog-ms MS]\n";
 std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop.store(true); }
 
@@ -87,6 +90,7 @@ int main(int argc, char** argv) {
   std::string board_file, sim_file, block, interface, fault_name;
   long long fault_after = -1;
   int heartbeat_ms = 20;
+  int watchdog_ms = 100;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     const bool has_value = i + 1 < argc;
@@ -96,6 +100,7 @@ int main(int argc, char** argv) {
     else if (a == "--fault" && has_value) fault_name = argv[++i];
     else if (a == "--fault-after-syncs" && has_value) fault_after = std::atoll(argv[++i]);
     else if (a == "--heartbeat-ms" && has_value) heartbeat_ms = std::atoi(argv[++i]);
+    else if (a == "--sync-watchdog-ms" && has_value) watchdog_ms = std::atoi(argv[++i]);
     else if (a == "-h" || a == "--help") {
       std::printf("%s", kUsage);
       return 0;
@@ -116,6 +121,10 @@ int main(int argc, char** argv) {
   }
   if (heartbeat_ms <= 0) {
     std::fprintf(stderr, "lode-can-emu: --heartbeat-ms must be positive\n");
+    return kExitConfig;
+  }
+  if (watchdog_ms < 0) {
+    std::fprintf(stderr, "lode-can-emu: --sync-watchdog-ms must be >= 0 (0: off)\n");
     return kExitConfig;
   }
   YAML::Node board_root;
@@ -197,6 +206,17 @@ int main(int argc, char** argv) {
   }
   DaqNode node(std::move(*socket), node_id, tpdo.mappings, rpdo.mappings, frontend,
                std::chrono::milliseconds(heartbeat_ms));
+  if (watchdog_ms > 0) {
+    // The module's own safe state: each RPDO entry's safe_value, as the block would send it.
+    std::vector<std::int64_t> safe;
+    for (std::size_t k = 0, first = 0; k < rpdo.mappings.size(); first += rpdo.mappings[k].entries.size(), ++k)
+      for (std::size_t e = 0; e < rpdo.mappings[k].entries.size(); ++e) {
+        bool clipped = false;
+        const auto& c = rpdo.channels[first + e];
+        safe.push_back(lode::plugins::can_daq::count_of(rpdo.mappings[k].entries[e], c, c.safe_value, clipped));
+      }
+    node.set_sync_watchdog(std::chrono::milliseconds(watchdog_ms), std::move(safe));
+  }
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
   std::printf("lode-can-emu: serving node %d on %s (%zu TPDO entries, %zu RPDO entries), plant from io.sim '%s' of %s\n",
@@ -204,7 +224,14 @@ int main(int argc, char** argv) {
   std::fflush(stdout);
   node.start();
   bool fault_injected = false, synced = false;
+  std::uint64_t trips_told = 0;
   while (!g_stop.load()) {
+    if (node.watchdog_trips() > trips_told) {
+      trips_told = node.watchdog_trips();
+      std::printf("lode-can-emu: SYNC watchdog: no SYNC for %d ms while operational: outputs driven to their safe "
+                  "values, pre-operational\n", watchdog_ms);
+      std::fflush(stdout);
+    }
     if (!synced && node.syncs() > 0) {
       synced = true;  // scripts wait for this line: the pipeline is running
       std::printf("lode-can-emu: first SYNC\n");

@@ -101,6 +101,10 @@ contains "after the silent module came back, it holds the safe outputs" "$TMP/ou
 # 1.5 N at 3.0517578125 mN per count = 491.52 -> 492 counts; tz's safe value stays 0.
 contains "after SIGTERM the module holds the non-zero safe outputs" "$TMP/out/term.emu.txt" \
   "outputs held: fx=492 .* fy=492 .* tz=0 "
+contains "SIGKILL: lode run died of it" "$TMP/console.txt" "^KILL_RC=137"
+contains "after SIGKILL the module's SYNC watchdog drove its outputs safe" "$TMP/out/kill.emu.txt" "SYNC watchdog: no SYNC"
+contains "after SIGKILL the module holds the non-zero safe outputs" "$TMP/out/kill.emu.txt" \
+  "outputs held: fx=492 .* fy=492 .* tz=0 "
 
 # The io.sim run of the same pipeline, here on the host (deterministic: same seed).
 "$LODE" run "$SRC/config/kawato_planar.yaml" --no-telemetry --no-local-control --quiet --record "$TMP/sim.h5" \

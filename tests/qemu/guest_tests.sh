@@ -6,7 +6,9 @@
 #  2. kawato_planar closed loop: `lode run` through io.socketcan_daq against lode-can-emu, its
 #     plant the io.sim block of kawato_planar.yaml (the host compares with io.sim);
 #  3. the emulator process stopped (SIGSTOP) mid-run: the run faults, outputs safe;
-#  4. SIGTERM to `lode run` mid-run: the module holds the (non-zero) safe values.
+#  4. SIGTERM to `lode run` mid-run: the module holds the (non-zero) safe values;
+#  5. SIGKILL to `lode run` mid-run (it cannot drive anything): the module's SYNC watchdog
+#     drives its outputs to the (non-zero) safe values on its own.
 # Every result goes to /out, which the host receives; lines with _RC= go to the console.
 . /guest/paths.sh
 OUT=/out
@@ -20,7 +22,8 @@ grep -E "^\[ +(OK|FAILED|SKIPPED|PASSED) |vcan0:|silent node|heartbeat lost:|Fai
 
 start_emulator() {  # start_emulator NAME CONFIG [ARGS...]
   name=$1; cfg=$2; shift 2
-  $EMU $cfg --sim /cfg/kawato_planar.yaml "$@" > $OUT/$name.emu.txt 2>&1 &
+  # SYNC watchdog 1 s: the emulated guest may stall for a tenth of a second under host load.
+  $EMU $cfg --sim /cfg/kawato_planar.yaml --sync-watchdog-ms 1000 "$@" > $OUT/$name.emu.txt 2>&1 &
   EMU_PID=$!
   i=0
   while [ $i -lt 100 ] && ! grep -q serving $OUT/$name.emu.txt; do sleep 0.1; i=$((i + 1)); done
@@ -75,4 +78,18 @@ echo "TERM_RC=$?"
 sleep 0.2
 stop_emulator
 tail -1 $OUT/term.emu.txt
+
+echo "== 5. SIGKILL to lode run mid-run"
+start_emulator kill /cfg/can_term.yaml
+$LODE run /cfg/can_term.yaml $RUN_ARGS > $OUT/kill.txt 2>&1 &
+RUN=$!
+wait_first_sync kill
+kill -KILL $RUN
+wait $RUN
+echo "KILL_RC=$?"
+i=0
+while [ $i -lt 50 ] && ! grep -q "SYNC watchdog" $OUT/kill.emu.txt; do sleep 0.1; i=$((i + 1)); done
+stop_emulator
+grep "SYNC watchdog" $OUT/kill.emu.txt
+tail -1 $OUT/kill.emu.txt
 exit $rc

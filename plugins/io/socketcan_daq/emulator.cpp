@@ -30,6 +30,12 @@ std::vector<std::int64_t> DaqNode::outputs() const {
   return out;
 }
 
+void DaqNode::set_sync_watchdog(std::chrono::microseconds timeout, std::vector<std::int64_t> safe) {
+  safe.resize(outputs_.size(), 0);
+  sync_watchdog_ = timeout;
+  safe_outputs_ = std::move(safe);
+}
+
 void DaqNode::send_heartbeat() {
   (void)socket_.send(co::heartbeat_frame(node_, static_cast<co::NmtState>(state_.load())));
 }
@@ -45,7 +51,10 @@ bool DaqNode::poll() {
     if (f.error || f.extended || f.remote) continue;
     if (f.id == co::kNmt && f.length == 2 && (f.data[1] == node_ || f.data[1] == 0)) {
       switch (static_cast<co::NmtCommand>(f.data[0])) {
-        case co::NmtCommand::start: state_.store(static_cast<int>(co::NmtState::operational)); break;
+        case co::NmtCommand::start:
+          state_.store(static_cast<int>(co::NmtState::operational));
+          last_sync_ = std::chrono::steady_clock::now();  // the watchdog's time starts here
+          break;
         case co::NmtCommand::stop: state_.store(static_cast<int>(co::NmtState::stopped)); break;
         default: state_.store(static_cast<int>(co::NmtState::pre_operational)); break;
       }
@@ -54,6 +63,7 @@ bool DaqNode::poll() {
     }
     if (f.id == co::kSync && f.length == 0) {
       syncs_.fetch_add(1);
+      last_sync_ = std::chrono::steady_clock::now();
       if (state() != co::NmtState::operational) continue;
       if (frontend_) frontend_(outputs_, inputs_);
       std::size_t first = 0;
@@ -98,6 +108,14 @@ bool DaqNode::poll() {
     fault_sent_ |= 2;
   }
   const auto now = std::chrono::steady_clock::now();
+  if (sync_watchdog_.count() > 0 && state() == co::NmtState::operational && now - last_sync_ > sync_watchdog_) {
+    outputs_ = safe_outputs_;
+    for (std::size_t k = 0; k < outputs_.size(); ++k) outputs_published_[k].store(outputs_[k]);
+    state_.store(static_cast<int>(co::NmtState::pre_operational));
+    watchdog_trips_.fetch_add(1);
+    if (fault != Fault::heartbeat_lost) send_heartbeat();  // the master hears the state change
+    acted = true;
+  }
   if (now >= next_heartbeat_ && fault != Fault::heartbeat_lost) {
     send_heartbeat();
     next_heartbeat_ = now + heartbeat_period_;

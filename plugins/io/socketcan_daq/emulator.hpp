@@ -7,6 +7,12 @@
 // heartbeats stop), `malformed_pdo` (TPDOs one byte short), `bus_off` (one error frame saying
 // bus-off: only meaningful on a socket pair, where this node plays the local controller too),
 // `emergency` (one EMCY with error code 0x2310, output current too high).
+//
+// SYNC watchdog (as a module's communication-cycle supervision, CiA 301 0x1006 with the error
+// behaviour of 0x1029 and the DS401 output error values 0x6443/0x6444): operational and no
+// SYNC for the set time, the module drives its outputs to the safe counts on its own and
+// drops to pre-operational. This is what covers a master that can no longer drive them safe
+// (killed with SIGKILL, powered off, cable pulled).
 #pragma once
 
 #include <atomic>
@@ -40,6 +46,10 @@ class DaqNode {
   void stop();
 
   void set_fault(Fault fault) { fault_.store(static_cast<int>(fault)); }
+  /// Arm the SYNC watchdog (before start()): `safe` has one count per RPDO entry. 0 disarms.
+  void set_sync_watchdog(std::chrono::microseconds timeout, std::vector<std::int64_t> safe);
+  /// Times the watchdog drove the outputs safe.
+  [[nodiscard]] std::uint64_t watchdog_trips() const { return watchdog_trips_.load(); }
   [[nodiscard]] std::uint64_t syncs() const { return syncs_.load(); }
   [[nodiscard]] std::uint64_t tpdos_sent() const { return tpdos_sent_.load(); }
   [[nodiscard]] std::uint64_t rpdos_received() const { return rpdos_received_.load(); }
@@ -61,6 +71,10 @@ class DaqNode {
   std::atomic<int> state_{static_cast<int>(hal::canopen::NmtState::pre_operational)};
   std::atomic<int> fault_{0};
   int fault_sent_ = 0;  // the one-shot faults already sent
+  std::chrono::microseconds sync_watchdog_{0};
+  std::vector<std::int64_t> safe_outputs_;
+  std::chrono::steady_clock::time_point last_sync_{};
+  std::atomic<std::uint64_t> watchdog_trips_{0};
   std::atomic<std::uint64_t> syncs_{0}, tpdos_sent_{0}, rpdos_received_{0};
   std::atomic<bool> running_{false};
   std::thread thread_;

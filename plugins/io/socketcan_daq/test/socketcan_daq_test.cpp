@@ -65,7 +65,8 @@ double exchange_pdo_timeout_us() { return real_interface() != nullptr ? 500000.0
 
 /// Loopback wiring of the module: a1 reads what fx outputs, b1 what fy outputs, c1 counts syncs.
 struct Rig {
-  explicit Rig(double heartbeat_ms = 200.0, double pdo_us = exchange_pdo_timeout_us()) {
+  explicit Rig(double heartbeat_ms = 200.0, double pdo_us = exchange_pdo_timeout_us(),
+               std::chrono::milliseconds sync_watchdog = std::chrono::milliseconds(0)) {
     lode::hal::CanSocket node_end;
     std::string interface;
     if (const char* name = real_interface()) {
@@ -92,6 +93,7 @@ struct Rig {
                                        in[1] = out[1];
                                        in[2] = ++conversions;
                                      });
+    node->set_sync_watchdog(sync_watchdog, {0, 200});  // the block's safe values, in counts
     node->start();
     h = std::make_unique<BlockHarness>("io.socketcan_daq", params(interface, heartbeat_ms, pdo_us), 1000.0);
     h->feed("command", kCommand);
@@ -168,6 +170,9 @@ TEST(SocketCanDaq, StartsTheNodeAndExchangesPdosEveryCycleWithNoLostFrame) {
     ASSERT_EQ(rig.h->output("counts")[2], static_cast<double>(k + 1)) << "TPDO2 carries the sync count";
   }
   EXPECT_EQ(rig.daq().complete_cycles(), static_cast<std::uint64_t>(cycles));
+  // Every complete cycle timed from SYNC to its last TPDO by the kernel's receive timestamps.
+  EXPECT_EQ(rig.daq().sync_to_tpdo().count(), static_cast<std::uint64_t>(cycles));
+  EXPECT_GT(rig.daq().sync_to_tpdo().min(), 0) << "a TPDO cannot arrive before its SYNC was sent";
   // The node counts a TPDO after sending it: the block may have it before the count moves.
   for (int i = 0; i < 100 && rig.node->tpdos_sent() < static_cast<std::uint64_t>(2 * cycles); ++i)
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
@@ -236,6 +241,32 @@ TEST(SocketCanDaqOnInterface, ThousandHertzForTenSecondsWithNoLostFrame) {
               static_cast<unsigned long long>(rig.node->rpdos_received()),
               static_cast<unsigned long long>(rig.daq().frames_received()), answer_us[kCycles / 2],
               answer_us[kCycles * 99 / 100], answer_us.back());
+  const lode::Histogram& bus = rig.daq().sync_to_tpdo();
+  EXPECT_EQ(bus.count(), static_cast<std::uint64_t>(kCycles));
+  std::printf("%s: SYNC sent -> last TPDO received by the kernel (receive timestamps): p50 %.0f us, p99 %.0f us, "
+              "max %.0f us\n",
+              real_interface(), bus.percentile(0.5) * 1e-3, bus.percentile(0.99) * 1e-3, static_cast<double>(bus.max()) * 1e-3);
+}
+
+// The module's side of safe outputs: a master that dies without a word (SIGKILL, power) sends
+// no safe RPDO, so the module's SYNC watchdog drives its outputs safe and leaves operational;
+// a master still alive then sees that in the heartbeat.
+TEST(SocketCanDaqEmulator, SyncWatchdogDrivesTheOutputsSafeWhenTheMasterGoesQuiet) {
+  Rig rig(200.0, exchange_pdo_timeout_us(), std::chrono::milliseconds(50));
+  ASSERT_TRUE(rig.ok);
+  for (int k = 0; k < 20; ++k) ASSERT_EQ(rig.cycle(3.0, -1.5), "") << "cycle " << k;
+  const auto quiet_from = std::chrono::steady_clock::now();  // the last SYNC went out just before
+  for (int i = 0; i < 200 && rig.node->outputs() != std::vector<std::int64_t>{300, -150}; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  ASSERT_EQ(rig.node->outputs(), (std::vector<std::int64_t>{300, -150}));
+  for (int i = 0; i < 1000 && rig.node->watchdog_trips() == 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - quiet_from).count();
+  ASSERT_EQ(rig.node->watchdog_trips(), 1u) << "no trip within 1 s of the last SYNC";
+  EXPECT_GE(ms, 45.0) << "tripped before the 50 ms watchdog time";
+  EXPECT_EQ(rig.node->outputs(), (std::vector<std::int64_t>{0, 200}));
+  EXPECT_EQ(rig.node->state(), co::NmtState::pre_operational);
+  std::printf("SYNC watchdog 50 ms: outputs safe %.1f ms after the last SYNC\n", ms);
+  EXPECT_EQ(rig.cycle(1.0, 1.0), "the node left the operational state (heartbeat)");
 }
 
 TEST(SocketCanDaqFaults, ASilentNodeIsAMissingTpdoWithinTheTimeout) {
