@@ -55,38 +55,39 @@ grep -E "overruns|timing|stage.read" $OUT/real.txt | tail -3
 stop_emulator
 tail -2 $OUT/real.emu.txt
 
+# start_mid_run NAME CONFIG: the emulator, then `lode run` in the background ($RUN), returning
+# once the pipeline runs; the caller interrupts one side, then calls end_mid_run NAME TAG.
+start_mid_run() {
+  start_emulator $1 $2
+  $LODE run $2 $RUN_ARGS > $OUT/$1.txt 2>&1 &
+  RUN=$!
+  wait_first_sync $1
+}
+end_mid_run() {
+  wait $RUN
+  echo "$2_RC=$?"
+  sleep 0.2  # the module takes the last frames
+}
+
 echo "== 3. the module stops answering mid-run"
-start_emulator stall /cfg/can_long.yaml
-$LODE run /cfg/can_long.yaml $RUN_ARGS > $OUT/stall.txt 2>&1 &
-RUN=$!
-wait_first_sync stall
+start_mid_run stall /cfg/can_long.yaml
 kill -STOP $EMU_PID
-wait $RUN
-echo "STALL_RC=$?"
+end_mid_run stall STALL
 grep "FAULT" $OUT/stall.txt | head -3
 stop_emulator
 tail -1 $OUT/stall.emu.txt
 
 echo "== 4. SIGTERM to lode run mid-run"
-start_emulator term /cfg/can_term.yaml
-$LODE run /cfg/can_term.yaml $RUN_ARGS > $OUT/term.txt 2>&1 &
-RUN=$!
-wait_first_sync term
+start_mid_run term /cfg/can_term.yaml
 kill -TERM $RUN
-wait $RUN
-echo "TERM_RC=$?"
-sleep 0.2
+end_mid_run term TERM
 stop_emulator
 tail -1 $OUT/term.emu.txt
 
 echo "== 5. SIGKILL to lode run mid-run"
-start_emulator kill /cfg/can_term.yaml
-$LODE run /cfg/can_term.yaml $RUN_ARGS > $OUT/kill.txt 2>&1 &
-RUN=$!
-wait_first_sync kill
+start_mid_run kill /cfg/can_term.yaml
 kill -KILL $RUN
-wait $RUN
-echo "KILL_RC=$?"
+end_mid_run kill KILL
 i=0
 while [ $i -lt 50 ] && ! grep -q "SYNC watchdog" $OUT/kill.emu.txt; do sleep 0.1; i=$((i + 1)); done
 stop_emulator

@@ -298,32 +298,30 @@ TEST(SocketCanDaqFaults, ALostHeartbeatIsDetectedWithinTheHeartbeatTimeout) {
   rig.expect_outputs_safe();
 }
 
-TEST(SocketCanDaqFaults, BusOffIsAFault) {
-  Rig rig;
+/// Faults that arrive as a frame (not as a silence): injected after 20 good cycles, reported
+/// with `reason` within two cycles (the node acts on its own thread between them), outputs safe.
+void expect_frame_fault(Rig& rig, DaqNode::Fault fault, const std::string& reason) {
   ASSERT_TRUE(rig.ok);
   ASSERT_EQ(rig.until_fault(20).first, "");
-  rig.node->set_fault(DaqNode::Fault::bus_off);
-  EXPECT_EQ(rig.until_fault().first, "CAN bus-off: the controller left the bus");
+  rig.node->set_fault(fault);
+  EXPECT_EQ(rig.until_fault(2).first, reason);
   rig.expect_outputs_safe();
+}
+
+TEST(SocketCanDaqFaults, BusOffIsAFault) {
+  Rig rig;
+  expect_frame_fault(rig, DaqNode::Fault::bus_off, "CAN bus-off: the controller left the bus");
 }
 
 TEST(SocketCanDaqFaults, AMalformedPdoLengthIsAFault) {
   Rig rig;
-  ASSERT_TRUE(rig.ok);
-  ASSERT_EQ(rig.until_fault(20).first, "");
-  rig.node->set_fault(DaqNode::Fault::malformed_pdo);
-  EXPECT_EQ(rig.until_fault().first, "PDO length does not match its mapping");
-  rig.expect_outputs_safe();
+  expect_frame_fault(rig, DaqNode::Fault::malformed_pdo, "PDO length does not match its mapping");
 }
 
 TEST(SocketCanDaqFaults, AnEmergencyIsAFaultWithItsCode) {
   Rig rig;
-  ASSERT_TRUE(rig.ok);
-  ASSERT_EQ(rig.until_fault(20).first, "");
-  rig.node->set_fault(DaqNode::Fault::emergency);
-  EXPECT_EQ(rig.until_fault().first, "EMCY from the node (error code in describe())");
+  expect_frame_fault(rig, DaqNode::Fault::emergency, "EMCY from the node (error code in describe())");
   EXPECT_EQ(rig.daq().last_emergency_code(), 0x2310);
-  rig.expect_outputs_safe();
 }
 
 TEST(SocketCanDaq, DeactivateDrivesTheOutputsSafeAndStopsTheNode) {
