@@ -5,8 +5,9 @@
 //
 //   lode-vme-emu BOARD.yaml --sim SIM.yaml [--block NAME] [--spin]
 //
-// BOARD.yaml is the pipeline that uses io.vme_pentek (the window's device and offset and the
-// channels are taken from its block); SIM.yaml has an io.sim block of the same name (or
+// BOARD.yaml is the pipeline that uses io.vme_pentek (the window's device and offset, the
+// register map and the channels are taken from its block, `register_map` resolved as
+// io.vme_pentek resolves it: relative to BOARD.yaml's directory); SIM.yaml has an io.sim block of the same name (or
 // --block NAME) whose `signals` are the ADC channels and whose `command` the DAC channels,
 // in order, with the same names and units. Per trigger the emulator advances the plant by one
 // period under the DAC values latched so far, samples it, and presents the codes: the same
@@ -18,6 +19,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <filesystem>
 #include <string>
 #include <thread>
 #include <vector>
@@ -26,7 +28,7 @@
 #include "lode/block_host.hpp"
 #include "lode/hal/analog.hpp"
 #include "lode/units.hpp"
-#include "register_map.hpp"
+#include "regmap.hpp"
 
 namespace {
 
@@ -37,6 +39,8 @@ void on_signal(int) { g_stop.store(true); }
 struct BoardConfig {
   std::string device;
   std::uint64_t offset = 0;
+  std::string register_map;  ///< "" = the built-in map
+  lode::vme::Layout layout = lode::vme::Layout::default_layout();
   std::vector<lode::hal::AnalogChannel> adc, dac;
 };
 
@@ -120,6 +124,21 @@ int main(int argc, char** argv) {
   }
   board.device = vme["device"].as<std::string>("");
   board.offset = vme["offset"].as<std::uint64_t>(0);
+  // The same map as io.vme_pentek: a relative path is relative to BOARD.yaml's directory
+  // (lode::Params::file_path), so both sides agree wherever they are started from.
+  board.register_map = vme["register_map"].as<std::string>("");
+  if (!board.register_map.empty()) {
+    const std::filesystem::path map(board.register_map);
+    if (map.is_relative())
+      board.register_map = (std::filesystem::path(board_file).parent_path() / map).lexically_normal().string();
+    auto layout = lode::vme::load_layout(board.register_map);
+    if (!layout) {
+      std::fprintf(stderr, "lode-vme-emu: %s: register_map of block '%s':\n%s\n",
+                   where(board_file, vme["register_map"]).c_str(), block.c_str(), layout.error().c_str());
+      return kExitConfig;
+    }
+    board.layout = *layout;
+  }
   if (!read_channels(board_file, vme["adc"], false, board.adc) || !read_channels(board_file, vme["dac"], true, board.dac))
     return kExitConfig;
   // The plant side: the io.sim block of the same name in the simulation pipeline.
@@ -185,16 +204,17 @@ int main(int argc, char** argv) {
       adc[i] = adc_volts[i].value_to_code(volts[i], clipped);
     }
   };
-  auto emulator = lode::vme::PentekEmulator::create(board.device, board.offset, board.adc.size(), board.dac.size(), frontend);
+  auto emulator = lode::vme::PentekEmulator::create(board.device, board.offset, board.layout, board.adc.size(),
+                                                    board.dac.size(), frontend);
   if (!emulator) {
     std::fprintf(stderr, "lode-vme-emu: %s\n", emulator.error().c_str());
     return kExitConfig;
   }
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
-  std::printf("lode-vme-emu: serving %s @ 0x%llx (%zu ADC, %zu DAC channels), plant from io.sim '%s' of %s\n",
+  std::printf("lode-vme-emu: serving %s @ 0x%llx (%zu ADC, %zu DAC channels, register map %s), plant from io.sim '%s' of %s\n",
               board.device.c_str(), static_cast<unsigned long long>(board.offset), board.adc.size(), board.dac.size(),
-              block.c_str(), sim_file.c_str());
+              board.register_map.empty() ? "built-in" : board.register_map.c_str(), block.c_str(), sim_file.c_str());
   std::fflush(stdout);
   auto& e = **emulator;
   while (!g_stop.load()) {
