@@ -109,14 +109,16 @@ int main(int argc, char** argv) {
   // The board: the io.vme_pentek block (named --block, else the first).
   BoardConfig board;
   YAML::Node vme;
+  bool found = false;  // a default YAML::Node is a defined null: `!vme` would never be true
   for (const auto& kv : board_root["blocks"]) {
     if (kv.second["plugin"].as<std::string>("") != "io.vme_pentek") continue;
     if (!block.empty() && kv.first.as<std::string>() != block) continue;
     block = kv.first.as<std::string>();
     vme = kv.second;
+    found = true;
     break;
   }
-  if (!vme) {
+  if (!found) {
     std::fprintf(stderr, "lode-vme-emu: %s has no io.vme_pentek block%s\n", board_file.c_str(),
                  block.empty() ? "" : (" named '" + block + "'").c_str());
     return kExitConfig;

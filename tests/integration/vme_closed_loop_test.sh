@@ -166,5 +166,8 @@ contains "the error names the map's file and line" "$TMP/badmap.out" "$TMP/shuff
 "$EMU" "$TMP/shuffled/vme.yaml" --sim "$SRC/config/kawato_planar.yaml" >"$TMP/emu_badmap.out" 2>&1
 check_rc "the emulator refuses the invalid map too" 2 $? "$TMP/emu_badmap.out"
 contains "its error names the map's file and line" "$TMP/emu_badmap.out" "board.regmap:2: register STATUS"
+"$EMU" "$TMP/vme.yaml" --sim "$SRC/config/kawato_planar.yaml" --block nope >"$TMP/emu_noblock.out" 2>&1
+check_rc "the emulator refuses a board pipeline without that io.vme_pentek block" 2 $? "$TMP/emu_noblock.out"
+contains "and says so" "$TMP/emu_noblock.out" "has no io.vme_pentek block named 'nope'"
 [ $fail -eq 0 ] && echo PASS
 exit $fail
