@@ -5,8 +5,9 @@
 //
 //   lode-vme-emu BOARD.yaml --sim SIM.yaml [--block NAME] [--spin]
 //
-// BOARD.yaml is the pipeline that uses io.vme_pentek (the window's device and offset and the
-// channels are taken from its block); SIM.yaml has an io.sim block of the same name (or
+// BOARD.yaml is the pipeline that uses io.vme_pentek (the window's device and offset, the
+// register map and the channels are taken from its block, `register_map` resolved as
+// io.vme_pentek resolves it: relative to BOARD.yaml's directory); SIM.yaml has an io.sim block of the same name (or
 // --block NAME) whose `signals` are the ADC channels and whose `command` the DAC channels,
 // in order, with the same names and units. Per trigger the emulator advances the plant by one
 // period under the DAC values latched so far, samples it, and presents the codes: the same
@@ -18,15 +19,16 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <filesystem>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "emulator.hpp"
-#include "lode/block_host.hpp"
 #include "lode/hal/analog.hpp"
 #include "lode/units.hpp"
-#include "register_map.hpp"
+#include "regmap.hpp"
+#include "sim_plant.hpp"
 
 namespace {
 
@@ -37,6 +39,8 @@ void on_signal(int) { g_stop.store(true); }
 struct BoardConfig {
   std::string device;
   std::uint64_t offset = 0;
+  std::string register_map;  ///< "" = the built-in map
+  lode::vme::Layout layout = lode::vme::Layout::default_layout();
   std::vector<lode::hal::AnalogChannel> adc, dac;
 };
 
@@ -95,10 +99,9 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "usage: lode-vme-emu BOARD.yaml --sim SIM.yaml [--block NAME] [--spin]\n");
     return kExitConfig;
   }
-  YAML::Node board_root, sim_root;
+  YAML::Node board_root;
   try {
     board_root = YAML::LoadFile(board_file);
-    sim_root = YAML::LoadFile(sim_file);
   } catch (const YAML::Exception& e) {
     std::fprintf(stderr, "lode-vme-emu: %s\n", e.what());
     return kExitConfig;
@@ -106,59 +109,48 @@ int main(int argc, char** argv) {
   // The board: the io.vme_pentek block (named --block, else the first).
   BoardConfig board;
   YAML::Node vme;
+  bool found = false;  // a default YAML::Node is a defined null: `!vme` would never be true
   for (const auto& kv : board_root["blocks"]) {
     if (kv.second["plugin"].as<std::string>("") != "io.vme_pentek") continue;
     if (!block.empty() && kv.first.as<std::string>() != block) continue;
     block = kv.first.as<std::string>();
     vme = kv.second;
+    found = true;
     break;
   }
-  if (!vme) {
+  if (!found) {
     std::fprintf(stderr, "lode-vme-emu: %s has no io.vme_pentek block%s\n", board_file.c_str(),
                  block.empty() ? "" : (" named '" + block + "'").c_str());
     return kExitConfig;
   }
   board.device = vme["device"].as<std::string>("");
   board.offset = vme["offset"].as<std::uint64_t>(0);
-  if (!read_channels(board_file, vme["adc"], false, board.adc) || !read_channels(board_file, vme["dac"], true, board.dac))
-    return kExitConfig;
-  // The plant side: the io.sim block of the same name in the simulation pipeline.
-  const YAML::Node sim_block = sim_root["blocks"][block];
-  if (!sim_block || sim_block["plugin"].as<std::string>("") != "io.sim") {
-    std::fprintf(stderr, "lode-vme-emu: %s has no io.sim block named '%s'\n", sim_file.c_str(), block.c_str());
-    return kExitConfig;
-  }
-  YAML::Node params = YAML::Clone(sim_block);
-  params.remove("plugin");
-  params.remove("inputs");
-  YAML::Emitter params_text, models_text;
-  params_text << params;
-  models_text << sim_root["models"];
-  const double rate_hz = sim_root["rate_hz"].as<double>(800.0);
-  lode::BlockHost sim("io.sim", params_text.c_str(), rate_hz, models_text.c_str());
-  lode::Elements command;
-  for (const auto& c : board.dac) command.push_back({c.name, c.unit});
-  sim.feed("command", command);
-  if (auto st = sim.configure(); !st) {
-    std::fprintf(stderr, "lode-vme-emu: the io.sim block '%s' of %s against the board's DAC channels:\n%s\n",
-                 block.c_str(), sim_file.c_str(), st.message().c_str());
-    return kExitConfig;
-  }
-  const lode::Elements& signals = sim.output_elements("signals");
-  if (signals.size() != board.adc.size()) {
-    std::fprintf(stderr, "lode-vme-emu: io.sim '%s' has %zu channels, the board %zu ADC channels\n", block.c_str(),
-                 signals.size(), board.adc.size());
-    return kExitConfig;
-  }
-  for (std::size_t i = 0; i < signals.size(); ++i) {
-    if (signals[i].name != board.adc[i].name) {
-      std::fprintf(stderr, "lode-vme-emu: ADC channel %zu is '%s' on the board but '%s' in io.sim\n", i,
-                   board.adc[i].name.c_str(), signals[i].name.c_str());
+  // The same map as io.vme_pentek: a relative path is relative to BOARD.yaml's directory
+  // (lode::Params::file_path), so both sides agree wherever they are started from.
+  board.register_map = vme["register_map"].as<std::string>("");
+  if (!board.register_map.empty()) {
+    const std::filesystem::path map(board.register_map);
+    if (map.is_relative())
+      board.register_map = (std::filesystem::path(board_file).parent_path() / map).lexically_normal().string();
+    auto layout = lode::vme::load_layout(board.register_map);
+    if (!layout) {
+      std::fprintf(stderr, "lode-vme-emu: %s: register_map of block '%s':\n%s\n",
+                   where(board_file, vme["register_map"]).c_str(), block.c_str(), layout.error().c_str());
       return kExitConfig;
     }
+    board.layout = *layout;
   }
-  if (auto st = sim.activate(); !st) {
-    std::fprintf(stderr, "lode-vme-emu: %s\n", st.message().c_str());
+  if (!read_channels(board_file, vme["adc"], false, board.adc) || !read_channels(board_file, vme["dac"], true, board.dac))
+    return kExitConfig;
+  // The plant side: the io.sim block of the same name in the simulation pipeline, its command
+  // the DAC channels and its signals the ADC channels (names checked by SimPlant).
+  lode::Elements command;
+  for (const auto& c : board.dac) command.push_back({c.name, c.unit});
+  std::vector<std::string> adc_names;
+  for (const auto& c : board.adc) adc_names.push_back(c.name);
+  auto plant = lode::emu::SimPlant::open(sim_file, block, command, adc_names);
+  if (!plant) {
+    std::fprintf(stderr, "lode-vme-emu: %s\n", plant.error().c_str());
     return kExitConfig;
   }
   // ADC: the converter codes of the io.sim volts (no calibration: the board converts volts).
@@ -169,32 +161,27 @@ int main(int argc, char** argv) {
     adc_volts.emplace_back(c);
   }
   for (const auto& c : board.dac) dac_values.emplace_back(c);
-  bool first = true;
-  std::uint64_t sim_faults = 0;
+  std::vector<double> dac_command(board.dac.size(), 0.0);
   auto frontend = [&](const std::vector<std::uint32_t>& dac, std::vector<std::uint32_t>& adc) {
-    if (!first) {
-      // One period under the DAC values latched so far, then the sample.
-      for (std::size_t i = 0; i < dac.size(); ++i) sim.input("command")[i] = dac_values[i].code_to_value(dac[i]);
-      if (sim.write() != lode::StepStatus::ok) ++sim_faults;
-    }
-    first = false;
-    if (sim.step() != lode::StepStatus::ok) ++sim_faults;
-    const auto volts = sim.output("signals");
+    // One period under the DAC values latched so far (skipped on the first trigger), then the sample.
+    for (std::size_t i = 0; i < dac.size(); ++i) dac_command[i] = dac_values[i].code_to_value(dac[i]);
+    const auto volts = (*plant)->sample_after(dac_command);
     for (std::size_t i = 0; i < adc.size(); ++i) {
       bool clipped = false;
       adc[i] = adc_volts[i].value_to_code(volts[i], clipped);
     }
   };
-  auto emulator = lode::vme::PentekEmulator::create(board.device, board.offset, board.adc.size(), board.dac.size(), frontend);
+  auto emulator = lode::vme::PentekEmulator::create(board.device, board.offset, board.layout, board.adc.size(),
+                                                    board.dac.size(), frontend);
   if (!emulator) {
     std::fprintf(stderr, "lode-vme-emu: %s\n", emulator.error().c_str());
     return kExitConfig;
   }
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
-  std::printf("lode-vme-emu: serving %s @ 0x%llx (%zu ADC, %zu DAC channels), plant from io.sim '%s' of %s\n",
+  std::printf("lode-vme-emu: serving %s @ 0x%llx (%zu ADC, %zu DAC channels, register map %s), plant from io.sim '%s' of %s\n",
               board.device.c_str(), static_cast<unsigned long long>(board.offset), board.adc.size(), board.dac.size(),
-              block.c_str(), sim_file.c_str());
+              board.register_map.empty() ? "built-in" : board.register_map.c_str(), block.c_str(), sim_file.c_str());
   std::fflush(stdout);
   auto& e = **emulator;
   while (!g_stop.load()) {
@@ -202,6 +189,6 @@ int main(int argc, char** argv) {
   }
   std::printf("lode-vme-emu: stopped after %llu conversions, %llu DAC loads, %llu plant faults\n",
               static_cast<unsigned long long>(e.conversions()), static_cast<unsigned long long>(e.dac_loads()),
-              static_cast<unsigned long long>(sim_faults));
+              static_cast<unsigned long long>((*plant)->faults()));
   return 0;
 }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 
 #include "params_node.hpp"
 
@@ -213,6 +214,17 @@ std::string Params::text(std::string_view key, std::string_view fallback) {
     return std::string(fallback);
   }
   return text(key);
+}
+
+std::string Params::file_path(std::string_view key, std::string_view fallback) {
+  if (!has(key)) return text(key, fallback);
+  const std::string value = text(key);
+  const std::filesystem::path p(value);
+  if (value.empty() || p.is_absolute()) return value;
+  // The location's file is the pipeline file's path as loaded (or a label without a
+  // directory for pipelines built from text: then relative to the working directory).
+  const std::filesystem::path dir = std::filesystem::path(location(key).file).parent_path();
+  return dir.empty() ? value : (dir / p).lexically_normal().string();
 }
 
 std::string Params::choice(std::string_view key, const std::vector<std::string>& allowed,

@@ -153,6 +153,24 @@ TEST_F(ParamsFixture, ListsAndNestedMaps) {
   EXPECT_NE(text.find("blocks.b.axes[1].extra: unknown parameter"), std::string::npos) << text;
 }
 
+TEST_F(ParamsFixture, FilePathsAreRelativeToTheConfigFilesDirectory) {
+  node = YAML::Load("map: maps/board.regmap\nup: ../b.regmap\nabs: /etc/b.regmap\nempty: ''\nnum: 3\n");
+  auto p = lode::detail::make_params(node, "blocks.b", "/srv/cfg/pipe.yaml", &diag);
+  EXPECT_EQ(p.file_path("map", ""), "/srv/cfg/maps/board.regmap");
+  EXPECT_EQ(p.file_path("up", ""), "/srv/b.regmap");
+  EXPECT_EQ(p.file_path("abs", ""), "/etc/b.regmap");
+  EXPECT_EQ(p.file_path("empty", "x"), "");
+  EXPECT_EQ(p.file_path("absent", "built-in"), "built-in");  // the fallback as given
+  EXPECT_TRUE(p.ok()) << diag.format();
+  // A pipeline built from text under a bare label: relative to the working directory.
+  auto q = lode::detail::make_params(node, "blocks.b", "label.yaml", &diag);
+  EXPECT_EQ(q.file_path("map", ""), "maps/board.regmap");
+  node["num"] = YAML::Load("[1, 2]");
+  EXPECT_EQ(p.file_path("num", ""), "");  // not a text: reported at the key
+  EXPECT_NE(diag.format().find("/srv/cfg/pipe.yaml:"), std::string::npos) << diag.format();
+  EXPECT_NE(diag.format().find("blocks.b.num: expected a text"), std::string::npos) << diag.format();
+}
+
 TEST(RealClock, SpinningSleepNeverReturnsEarlyAndBurnsOnlyTheSpin) {
   // realtime.spin_us: sleep until spin before the deadline, busy-wait the rest.
   for (const std::int64_t spin_ns : {std::int64_t{0}, std::int64_t{200'000}}) {

@@ -9,7 +9,11 @@
 #  2. the emulator stops answering (SIGSTOP) mid-run: the run faults with the reason, exit 1,
 #     and the DAC registers hold the safe codes with DAC_LOAD rung;
 #  3. SIGTERM to lode run mid-run stops it cleanly with the DAC outputs at their safe codes;
-#  4. SIGTERM stops the emulator cleanly.
+#  4. SIGTERM stops the emulator cleanly;
+#  5. a register map with every register moved (test/shuffled.regmap), named by a relative
+#     `register_map` in a copy of the config, both processes started from another directory:
+#     the closed loop gives exactly the output of 1, and the safe codes land where that map
+#     puts DAC_DATA; an invalid map is a configuration error (exit 2) naming its file and line.
 # usage: vme_closed_loop_test.sh LODE LODE_VME_EMU SRC
 set -u
 LODE=$1 EMU=$2 SRC=$3
@@ -30,13 +34,15 @@ start_emulator() {
   bad "emulator did not start"; cat "$TMP/emu.out"; return 1
 }
 
-# DAC_DATA[i] (0x200 + 4i) and DAC_LOAD (0x014) as the register window holds them now.
+# DAC_DATA[i] and DAC_LOAD as the register window holds them now. Default map: DAC_DATA at
+# 0x200 + 4i, DAC_LOAD at 0x014; dac_registers WINDOW DAC_DATA STRIDE DAC_LOAD for another.
 dac_registers() {
-  $PY - "$WINDOW" <<'PY'
+  $PY - "${1:-$WINDOW}" "${2:-0x200}" "${3:-4}" "${4:-0x014}" <<'PY'
 import sys, struct
 w = open(sys.argv[1], "rb").read()
+base, stride, load = (int(a, 0) for a in sys.argv[2:5])
 u32 = lambda off: struct.unpack_from("<I", w, off)[0]
-print("dac", " ".join("%d" % u32(0x200 + 4 * i) for i in range(3)), "load", u32(0x014))
+print("dac", " ".join("%d" % u32(base + stride * i) for i in range(3)), "load", u32(load))
 PY
 }
 
@@ -117,5 +123,51 @@ kill -TERM $EMU_PID
 wait $EMU_PID
 check_rc "emulator exits on SIGTERM" 0 $? "$TMP/emu.out"
 contains "emulator reports what it served" "$TMP/emu.out" "stopped after [0-9]+ conversions"
+
+# 5. A shuffled register map, named relative to the config file, both processes started
+# elsewhere (/) so a path resolved against the working directory would not be found.
+mkdir "$TMP/shuffled"
+cp "$SRC/plugins/io/vme_pentek/test/shuffled.regmap" "$TMP/shuffled/board.regmap"
+sed -e "s#device: $WINDOW#device: $TMP/window_shuffled#" \
+    -e "s/^\(    offset: 0x0.*\)$/\1\n    register_map: board.regmap/" "$TMP/vme.yaml" >"$TMP/shuffled/vme.yaml"
+grep -q "register_map: board.regmap" "$TMP/shuffled/vme.yaml" || bad "test bug: no register_map in the shuffled config"
+(cd / && exec "$EMU" "$TMP/shuffled/vme.yaml" --sim "$SRC/config/kawato_planar.yaml") >"$TMP/emu_shuffled.out" 2>&1 &
+EMU_PID=$!
+PIDS+=($EMU_PID)
+for _ in $(seq 1 100); do grep -q "serving" "$TMP/emu_shuffled.out" && break; sleep 0.1; done
+contains "the emulator serves the shuffled map" "$TMP/emu_shuffled.out" "register map $TMP/shuffled/board.regmap"
+(cd / && exec "$LODE" run "$TMP/shuffled/vme.yaml" --clock sim --no-telemetry --no-local-control --quiet \
+   --record "$TMP/shuffled.h5") >"$TMP/shuffled.out" 2>&1
+check_rc "closed loop through the shuffled register map" 0 $? "$TMP/shuffled.out"
+# shuffled.regmap: DAC_DATA at 0x000 stride 8, DAC_LOAD at 0x110.
+dac_registers "$TMP/window_shuffled" 0x000 8 0x110 >"$TMP/dac_shuffled.txt"
+contains "after the run the shuffled DAC registers hold the safe codes" "$TMP/dac_shuffled.txt" "^dac 0 0 0 load"
+$PY - "$TMP/shuffled.h5" "$TMP/vme.h5" <<'PY' || bad "the shuffled-map run differs from the default-map run"
+import sys, h5py, numpy as np
+a, b = h5py.File(sys.argv[1], "r"), h5py.File(sys.argv[2], "r")
+def series(f, sig):
+    g = f["signals/" + sig]
+    return np.column_stack([g[n][:] for n in g.attrs["names"]])
+for sig in ("stage.signals", "ctrl.out", "kf.pose"):
+    x, y = series(a, sig), series(b, sig)
+    assert x.shape == y.shape, (sig, x.shape, y.shape)
+    # The same converters, plant and noise behind other offsets: the same run, bit for bit.
+    print("%s: %d cycles, max |shuffled - default| %.3g" % (sig, len(x), np.abs(x - y).max()))
+    assert np.array_equal(x, y), sig
+PY
+kill -TERM $EMU_PID
+wait $EMU_PID
+check_rc "emulator on the shuffled map exits on SIGTERM" 0 $? "$TMP/emu_shuffled.out"
+printf 'window 0x400\nregister STATUS 0x402 ro\n' >"$TMP/shuffled/board.regmap"
+"$LODE" run "$TMP/shuffled/vme.yaml" --clock sim --no-telemetry --no-local-control --quiet >"$TMP/badmap.out" 2>&1
+check_rc "an invalid register map refuses to start" 2 $? "$TMP/badmap.out"
+contains "the error is on the block's register_map key" "$TMP/badmap.out" "vme.yaml:[0-9]+:[0-9]+: blocks.stage.register_map: invalid register map"
+contains "the error names the map's file and line" "$TMP/badmap.out" "$TMP/shuffled/board.regmap:2: register STATUS: offset 0x402"
+"$EMU" "$TMP/shuffled/vme.yaml" --sim "$SRC/config/kawato_planar.yaml" >"$TMP/emu_badmap.out" 2>&1
+check_rc "the emulator refuses the invalid map too" 2 $? "$TMP/emu_badmap.out"
+contains "its error names the map's file and line" "$TMP/emu_badmap.out" "board.regmap:2: register STATUS"
+"$EMU" "$TMP/vme.yaml" --sim "$SRC/config/kawato_planar.yaml" --block nope >"$TMP/emu_noblock.out" 2>&1
+check_rc "the emulator refuses a board pipeline without that io.vme_pentek block" 2 $? "$TMP/emu_noblock.out"
+contains "and says so" "$TMP/emu_noblock.out" "has no io.vme_pentek block named 'nope'"
 [ $fail -eq 0 ] && echo PASS
 exit $fail

@@ -42,6 +42,10 @@ class Params {
   bool flag(std::string_view key, bool fallback);
   std::string text(std::string_view key);
   std::string text(std::string_view key, std::string_view fallback);
+  /// A file named by the configuration: text, a relative path taken relative to the directory
+  /// of the file the key is written in, so a pipeline and the files it names can move
+  /// together and `lode run` works from any directory. Absent: `fallback`, as given.
+  std::string file_path(std::string_view key, std::string_view fallback);
   /// One of `allowed`; anything else is reported with the list of allowed values.
   std::string choice(std::string_view key, const std::vector<std::string>& allowed,
                      std::optional<std::string_view> fallback = std::nullopt);

@@ -1,5 +1,6 @@
-// The board side of register_map.hpp: plays the Pentek-like ADC/DAC pair on a register
-// window (a shared-memory file the host maps too), so io.vme_pentek runs without hardware.
+// The board side of regmap.hpp: plays the Pentek-like ADC/DAC pair on a register window (a
+// shared-memory file the host maps too), its registers where a Layout puts them (the default
+// map or one parsed from a file), so io.vme_pentek runs without hardware.
 // What the ADC converts comes from a front end: in tests a loopback or a fixed signal, in
 // lode-vme-emu a simulated plant with its measurement models.
 //
@@ -21,6 +22,7 @@
 
 #include "lode/hal/register_window.hpp"
 #include "lode/status.hpp"
+#include "regmap.hpp"
 
 namespace lode::vme {
 
@@ -30,11 +32,12 @@ class PentekEmulator {
   /// One conversion: the DAC codes now latched in, the ADC codes to present out.
   using Frontend = std::function<void(const std::vector<std::uint32_t>& dac, std::vector<std::uint32_t>& adc)>;
 
-  /// Creates the window file if needed (zero-filled, kWindowLength bytes past `offset`) and
+  /// Creates the window file if needed (zero-filled, layout.window bytes past `offset`) and
   /// presents an idle board: id, channel counts, STATUS 0.
   static Expected<std::unique_ptr<PentekEmulator>> create(const std::string& path, std::uint64_t offset,
-                                                           std::size_t adc_channels, std::size_t dac_channels,
-                                                           Frontend frontend, std::uint32_t revision = 1);
+                                                           const Layout& layout, std::size_t adc_channels,
+                                                           std::size_t dac_channels, Frontend frontend,
+                                                           std::uint32_t revision = 1);
   ~PentekEmulator();
   PentekEmulator(const PentekEmulator&) = delete;
   PentekEmulator& operator=(const PentekEmulator&) = delete;
@@ -55,6 +58,7 @@ class PentekEmulator {
   PentekEmulator() = default;
 
   hal::RegisterWindow window_;
+  Layout layout_;
   std::size_t adc_channels_ = 0, dac_channels_ = 0;
   std::uint32_t board_id_ = 0;
   Frontend frontend_;

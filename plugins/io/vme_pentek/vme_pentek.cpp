@@ -7,7 +7,6 @@
 #include "lode/clock.hpp"
 #include "lode/plugin.hpp"
 #include "lode/units.hpp"
-#include "register_map.hpp"
 
 namespace lode::plugins {
 
@@ -59,6 +58,15 @@ Status VmePentekBoard::configure(ConfigureContext& ctx) {
   params.check(offset >= 0, "offset", "must be >= 0 (bytes into the device), got " + std::to_string(offset));
   offset_ = static_cast<std::uint64_t>(std::max<std::int64_t>(0, offset));
   external_trigger_ = params.choice("trigger", {"software", "external"}, "software") == "external";
+  // The register map: a parse error names the map's file and line and is reported on the key,
+  // so the pipeline does not load.
+  register_map_ = params.file_path("register_map", "");
+  layout_ = vme::Layout::default_layout();
+  if (!register_map_.empty()) {
+    auto layout = vme::load_layout(register_map_);
+    if (layout) layout_ = *layout;
+    else params.fail("register_map", "invalid register map:\n" + layout.error());
+  }
   const double timeout_us = params.number("conversion_timeout_us", 100.0);
   params.check(timeout_us > 0.0 && timeout_us <= 1e6, "conversion_timeout_us",
                "must be within (0, 1e6] us, got " + std::to_string(timeout_us));
@@ -68,8 +76,10 @@ Status VmePentekBoard::configure(ConfigureContext& ctx) {
   for (Params& item : params.items("adc")) adc_.push_back(parse_channel(item, false));
   if (params.has("dac"))
     for (Params& item : params.items("dac")) dac_.push_back(parse_channel(item, true));
-  params.check(adc_.size() <= vme::kMaxChannels, "adc", "at most " + std::to_string(vme::kMaxChannels) + " channels");
-  params.check(dac_.size() <= vme::kMaxChannels, "dac", "at most " + std::to_string(vme::kMaxChannels) + " channels");
+  params.check(adc_.size() <= layout_.adc_data.count, "adc",
+               "at most " + std::to_string(layout_.adc_data.count) + " channels (ADC_DATA of the register map)");
+  params.check(dac_.size() <= layout_.dac_data.count, "dac",
+               "at most " + std::to_string(layout_.dac_data.count) + " channels (DAC_DATA of the register map)");
   adc_conv_.clear();
   dac_conv_.clear();
   for (const auto& c : adc_) adc_conv_.emplace_back(c);
@@ -81,33 +91,35 @@ Status VmePentekBoard::configure(ConfigureContext& ctx) {
 }
 
 Status VmePentekBoard::activate() {
-  auto window = hal::RegisterWindow::open(device_, offset_, vme::kWindowLength);
+  const vme::Layout& l = layout_;
+  auto window = hal::RegisterWindow::open(device_, offset_, l.window);
   if (!window) return Status::error(window.error());
   window_ = std::move(*window);
-  // Every register this block touches, checked once here; the RT path then does only the access.
-  for (const std::size_t reg : {vme::kBoardId, vme::kControl, vme::kStatus, vme::kChannels, vme::kTrigger,
-                                vme::kDacLoad, vme::kResetErrors}) {
+  // Every register this block touches, checked once here (the parser checked the map against
+  // its own window already; this is the guard for the mapping itself); the RT path then does
+  // only the access.
+  for (const std::size_t reg : {l.board_id, l.control, l.status, l.channels, l.trigger, l.dac_load, l.reset_errors}) {
     if (auto st = window_.check(reg, 4); !st) return st;
   }
   for (std::size_t i = 0; i < adc_.size(); ++i)
-    if (auto st = window_.check(vme::adc_data(i), 4); !st) return st;
+    if (auto st = window_.check(l.adc_data.at(i), 4); !st) return st;
   for (std::size_t i = 0; i < dac_.size(); ++i)
-    if (auto st = window_.check(vme::dac_data(i), 4); !st) return st;
-  const std::uint32_t id = window_.read32(vme::kBoardId);
+    if (auto st = window_.check(l.dac_data.at(i), 4); !st) return st;
+  const std::uint32_t id = window_.read32(l.board_id);
   if (id == vme::kNoAnswer)
     return Status::error(window_.describe() + ": no board answers (BOARD_ID reads 0xffffffff: bus error or no board)");
-  if ((id & vme::kBoardIdMask) != vme::kBoardIdValue)
+  if ((id & l.board_id_mask) != l.board_id_value)
     return Status::error(window_.describe() + ": BOARD_ID " + hex(id) + " is not a Pentek-like 6102 pair (expected " +
-                         hex(vme::kBoardIdValue) + " | revision)");
-  const std::uint32_t channels = window_.read32(vme::kChannels);
-  const std::size_t board_adc = channels & 0xffu, board_dac = (channels >> 8) & 0xffu;
+                         hex(l.board_id_value) + " under mask " + hex(l.board_id_mask) + ")");
+  const std::uint32_t channels = window_.read32(l.channels);
+  const std::size_t board_adc = l.adc_channels.get(channels), board_dac = l.dac_channels.get(channels);
   if (adc_.size() > board_adc || dac_.size() > board_dac)
     return Status::error(window_.describe() + ": the configuration uses " + std::to_string(adc_.size()) + " ADC and " +
                          std::to_string(dac_.size()) + " DAC channels; the board has " + std::to_string(board_adc) +
                          " and " + std::to_string(board_dac));
-  window_.write32(vme::kControl, vme::kEnable | (external_trigger_ ? vme::kExtTrigger : 0u));
-  window_.write32(vme::kResetErrors, 1);
-  last_sequence_ = vme::sequence_of(window_.read32(vme::kStatus));
+  window_.write32(l.control, l.enable | (external_trigger_ ? l.ext_trigger : 0u));
+  window_.write32(l.reset_errors, 1);
+  last_sequence_ = l.sequence.get(window_.read32(l.status));
   dac_clips_.store(0, std::memory_order_relaxed);
   drive_safe();  // outputs start at their safe values
   dac_load_pending_ = false;  // the board need not have latched them before the first cycle
@@ -122,21 +134,22 @@ StepStatus VmePentekBoard::board_fault(const char* reason, std::uint32_t status)
 
 StepStatus VmePentekBoard::step(const Tick& /*tick*/) noexcept {
   if (!window_.mapped()) return fault("register window not mapped (activate() failed)");
-  if (const std::uint32_t status = window_.read32(vme::kStatus); status == vme::kNoAnswer)
+  const vme::Layout& l = layout_;
+  if (const std::uint32_t status = window_.read32(l.status); status == vme::kNoAnswer)
     return board_fault("no answer from the board (STATUS reads all ones: VME bus error)", status);
-  if (!external_trigger_) window_.write32(vme::kTrigger, 1);
+  if (!external_trigger_) window_.write32(l.trigger, 1);
   const std::int64_t deadline = monotonic_ns() + conversion_timeout_ns_;
   std::uint32_t status = 0;
   for (;;) {
-    status = window_.read32(vme::kStatus);
+    status = window_.read32(l.status);
     if (status == vme::kNoAnswer) return board_fault("no answer from the board (STATUS reads all ones: VME bus error)", status);
-    if ((status & vme::kDone) != 0 && vme::sequence_of(status) != last_sequence_) break;
+    if ((status & l.done) != 0 && l.sequence.get(status) != last_sequence_) break;
     if (monotonic_ns() > deadline) {
       // TRIGGER first, then STATUS again: a board taking the trigger sets BUSY before it
       // clears TRIGGER, so the pair read in this order is consistent.
-      const bool trigger_pending = !external_trigger_ && window_.read32(vme::kTrigger) != 0;
-      status = window_.read32(vme::kStatus);
-      return board_fault((status & vme::kBusy) != 0 ? "conversion did not complete within conversion_timeout_us (BUSY)"
+      const bool trigger_pending = !external_trigger_ && window_.read32(l.trigger) != 0;
+      status = window_.read32(l.status);
+      return board_fault((status & l.busy) != 0 ? "conversion did not complete within conversion_timeout_us (BUSY)"
                          : trigger_pending ? "the board did not take the trigger within conversion_timeout_us (not answering)"
                                            : "no new conversion within conversion_timeout_us",
                          status);
@@ -145,19 +158,19 @@ StepStatus VmePentekBoard::step(const Tick& /*tick*/) noexcept {
   std::atomic_thread_fence(std::memory_order_acquire);  // data after the STATUS that announced them
   // The board acts on DAC_LOAD (rung at the end of the last cycle) before a TRIGGER rung after
   // it: once this conversion is done, the last DAC values must have been latched.
-  if (dac_load_pending_ && window_.read32(vme::kDacLoad) != 0)
+  if (dac_load_pending_ && window_.read32(l.dac_load) != 0)
     return board_fault("the board did not latch the last DAC values (DAC_LOAD still set)", status);
   dac_load_pending_ = false;
-  if ((status & vme::kErrorMask) != 0) {
-    if (status & vme::kErrBus) return board_fault("board error bit: VME bus error", status);
-    if (status & vme::kErrAdc) return board_fault("board error bit: ADC fault", status);
-    if (status & vme::kErrDac) return board_fault("board error bit: DAC fault", status);
+  if ((status & l.error_mask()) != 0) {
+    if (status & l.err_bus) return board_fault("board error bit: VME bus error", status);
+    if (status & l.err_adc) return board_fault("board error bit: ADC fault", status);
+    if (status & l.err_dac) return board_fault("board error bit: DAC fault", status);
     return board_fault("board error bit: trigger overrun", status);
   }
-  last_sequence_ = vme::sequence_of(status);
+  last_sequence_ = l.sequence.get(status);
   last_status_.store(status, std::memory_order_relaxed);
   for (std::size_t i = 0; i < adc_.size(); ++i) {
-    const std::uint32_t raw = window_.read32(vme::adc_data(i));
+    const std::uint32_t raw = window_.read32(l.adc_data.at(i));
     signals_[i] = adc_conv_[i].code_to_value(raw);
     counts_[i] = static_cast<double>(adc_conv_[i].code_index(raw));
   }
@@ -173,12 +186,12 @@ StepStatus VmePentekBoard::write(const Tick& /*tick*/) noexcept {
       return fault("non-finite command: DAC outputs driven to their safe values");
     }
     bool clipped = false;
-    window_.write32(vme::dac_data(i), dac_conv_[i].value_to_code(command_[i], clipped));
+    window_.write32(layout_.dac_data.at(i), dac_conv_[i].value_to_code(command_[i], clipped));
     clipped_now += clipped ? 1 : 0;
   }
   if (!dac_.empty()) {
     std::atomic_thread_fence(std::memory_order_release);  // data before the doorbell
-    window_.write32(vme::kDacLoad, 1);
+    window_.write32(layout_.dac_load, 1);
     dac_load_pending_ = true;
   }
   if (clipped_now > 0) dac_clips_.fetch_add(clipped_now, std::memory_order_relaxed);
@@ -187,9 +200,9 @@ StepStatus VmePentekBoard::write(const Tick& /*tick*/) noexcept {
 
 void VmePentekBoard::drive_safe() noexcept {
   if (!window_.mapped()) return;
-  for (std::size_t i = 0; i < dac_.size(); ++i) window_.write32(vme::dac_data(i), dac_conv_[i].safe_code());
+  for (std::size_t i = 0; i < dac_.size(); ++i) window_.write32(layout_.dac_data.at(i), dac_conv_[i].safe_code());
   std::atomic_thread_fence(std::memory_order_release);
-  if (!dac_.empty()) window_.write32(vme::kDacLoad, 1);
+  if (!dac_.empty()) window_.write32(layout_.dac_load, 1);
 }
 
 void VmePentekBoard::deactivate() noexcept {
@@ -200,6 +213,7 @@ void VmePentekBoard::deactivate() noexcept {
 void VmePentekBoard::describe(Json& out) const {
   out["device"] = device_;
   out["offset"] = hex(offset_);
+  out["register_map"] = register_map_.empty() ? std::string("built-in (pentek6102_dvme622.regmap)") : register_map_;
   out["trigger"] = external_trigger_ ? "external" : "software";
   out["conversion_timeout_us"] = static_cast<double>(conversion_timeout_ns_) * 1e-3;
   auto channels = [](const std::vector<hal::AnalogChannel>& list, const std::vector<hal::AnalogConversion>& conv,
@@ -230,6 +244,9 @@ constexpr ParamDoc kParams[] = {
     {"device", "text", nullptr,
      "the register window: a UIO device (/dev/uioN), /dev/mem behind a VME bridge, or the emulator's file"},
     {"offset", "integer", "0", "byte offset of the board's window in `device` (need not be page aligned)"},
+    {"register_map", "text", "built-in",
+     "register-map file (README.md: format; pentek6102_dvme622.regmap is the built-in map), relative to the "
+     "pipeline file's directory"},
     {"trigger", "text", "software", "software (this block rings TRIGGER each cycle) or external (the board's input)"},
     {"conversion_timeout_us", "number", "100", "longest wait for a conversion; longer is a fault [us]"},
     {"adc", "list<map>", nullptr,

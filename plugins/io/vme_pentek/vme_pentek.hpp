@@ -1,6 +1,6 @@
 // io.vme_pentek: a Pentek-like VME ADC/DAC board pair through a memory-mapped register
-// window (DESIGN.md §8; issue 6; seed 000 §6). Register map and protocol: register_map.hpp
-// and README.md.
+// window (DESIGN.md §8; issue 6; seed 000 §6). Register map and protocol: regmap.hpp and
+// README.md; the map is the built-in default or the file named by `register_map`.
 //
 // @system
 // name: io.vme_pentek
@@ -30,6 +30,7 @@
 #include "lode/block.hpp"
 #include "lode/hal/analog.hpp"
 #include "lode/hal/register_window.hpp"
+#include "regmap.hpp"
 
 namespace lode::plugins {
 
@@ -52,6 +53,8 @@ class VmePentekBoard final : public Block {
   StepStatus board_fault(const char* reason, std::uint32_t status) noexcept;
 
   std::string device_;
+  std::string register_map_;  ///< the map's file ("" = built-in default), for describe()
+  vme::Layout layout_;        ///< parsed in configure(); the RT path reads only its offsets
   std::uint64_t offset_ = 0;
   bool external_trigger_ = false;
   std::int64_t conversion_timeout_ns_ = 0;

@@ -2,10 +2,11 @@
 // real board speaks through a UIO window): a DAC -> ADC loopback round-trips values within
 // one code, the safe values reach the outputs on a fault and on deactivate, and the three
 // board faults of issue 6 are detected within the configured timeout: the board stops
-// answering, an error bit is set, a conversion never completes. Plus no allocation per cycle
-// and configuration errors that name the field.
+// answering, an error bit is set, a conversion never completes. Plus no allocation per cycle,
+// configuration errors that name the field, and a moved register map (`register_map`) used by
+// both sides.
 #include "emulator.hpp"
-#include "register_map.hpp"
+#include "regmap.hpp"
 #include "vme_pentek.hpp"
 
 #include <gtest/gtest.h>
@@ -37,9 +38,13 @@ struct WindowFile {
   std::string path;
 };
 
+using lode::vme::Layout;
+const std::string kShuffledMap = LODE_SOURCE_DIR "/plugins/io/vme_pentek/test/shuffled.regmap";
+
 /// Two ADC channels in volts, two DAC channels in newtons (10 N/V amplifier), 0 N safe.
-std::string board_params(const std::string& device, double timeout_us = 20000.0) {
+std::string board_params(const std::string& device, double timeout_us = 20000.0, const std::string& register_map = "") {
   return "device: " + device + "\noffset: 0x200\nconversion_timeout_us: " + std::to_string(timeout_us) +
+         (register_map.empty() ? std::string() : "\nregister_map: " + register_map) +
          "\nadc:\n  - {name: a1, bits: 16, span_v: [-10, 10]}\n  - {name: b1, bits: 16, span_v: [-10, 10]}\n"
          "dac:\n  - {name: fx, bits: 16, span_v: [-10, 10], gain: 10.0, unit: N, safe_value: 0.0}\n"
          "  - {name: fy, bits: 16, span_v: [-10, 10], gain: 10.0, unit: N, safe_value: 5.0}\n";
@@ -51,9 +56,12 @@ void loopback(const std::vector<std::uint32_t>& dac, std::vector<std::uint32_t>&
   for (std::size_t i = 0; i < adc.size(); ++i) adc[i] = i < dac.size() ? dac[i] : 0;
 }
 
+/// The board configured with `register_map` ("" = built-in), the emulator with `layout`.
 struct Rig {
-  explicit Rig(double timeout_us = 20000.0) : h("io.vme_pentek", board_params(file.path, timeout_us), 1000.0) {
-    auto e = PentekEmulator::create(file.path, 0x200, 4, 2, loopback);
+  explicit Rig(double timeout_us = 20000.0, const std::string& register_map = "",
+               const Layout& layout = Layout::default_layout())
+      : h("io.vme_pentek", board_params(file.path, timeout_us, register_map), 1000.0) {
+    auto e = PentekEmulator::create(file.path, 0x200, layout, 4, 2, loopback);
     if (!e) {
       ADD_FAILURE() << e.error();
       return;
@@ -188,10 +196,10 @@ TEST(VmePentekFaults, AnErrorBitIsAFaultNamingIt) {
   Rig rig;
   ASSERT_TRUE(rig.ok);
   ASSERT_EQ(run_until_fault(rig, 20).reason, "");
-  rig.emulator->set_fault(PentekEmulator::Fault::error_bits, lode::vme::kErrAdc);
+  rig.emulator->set_fault(PentekEmulator::Fault::error_bits, Layout::default_layout().err_adc);
   const Trip trip = run_until_fault(rig);
   EXPECT_EQ(trip.reason, "board error bit: ADC fault");
-  EXPECT_NE(rig.board().last_status() & lode::vme::kErrAdc, 0u);
+  EXPECT_NE(rig.board().last_status() & Layout::default_layout().err_adc, 0u);
   expect_outputs_safe(rig);
 }
 
@@ -251,7 +259,7 @@ TEST(VmePentek, ActivationRefusesAMissingWindowOrAnotherBoard) {
     ASSERT_FALSE(st);
     EXPECT_NE(st.message().find(file.path + " @ 0x200"), std::string::npos) << st.message();
   }
-  ASSERT_TRUE(lode::hal::RegisterWindow::create_file(file.path, 0x200 + lode::vme::kWindowLength));
+  ASSERT_TRUE(lode::hal::RegisterWindow::create_file(file.path, 0x200 + Layout::default_layout().window));
   {
     BlockHarness h("io.vme_pentek", board_params(file.path), 1000.0);
     h.feed("command", kCommand);
@@ -260,6 +268,87 @@ TEST(VmePentek, ActivationRefusesAMissingWindowOrAnotherBoard) {
     ASSERT_FALSE(st);
     EXPECT_NE(st.message().find("BOARD_ID 0x0 is not a Pentek-like 6102 pair"), std::string::npos) << st.message();
   }
+}
+
+TEST(VmePentekRegisterMap, DriverAndEmulatorOnAShuffledMapExchangeData) {
+  const auto layout = lode::vme::load_layout(kShuffledMap);
+  ASSERT_TRUE(layout) << layout.error();
+  ASSERT_NE(layout->dac_data.offset, Layout::default_layout().dac_data.offset);  // the test means something
+  Rig rig(20000.0, kShuffledMap, *layout);
+  ASSERT_TRUE(rig.ok);
+  const double lsb_v = 20.0 / 65536.0;
+  for (int k = 0; k < 300; ++k) {  // more conversions than the map's 8-bit SEQUENCE counts: it wraps
+    rig.h.input("command")[0] = 30.0 * std::sin(0.07 * k);
+    rig.h.input("command")[1] = 7.5;
+    ASSERT_EQ(rig.h.step(), StepStatus::ok) << rig.h.block().fault_reason();
+    if (k > 0) {
+      EXPECT_NEAR(rig.h.output("signals")[0], 3.0 * std::sin(0.07 * (k - 1)), 0.5 * lsb_v + 1e-12) << "cycle " << k;
+      EXPECT_NEAR(rig.h.output("signals")[1], 0.75, 0.5 * lsb_v + 1e-12);
+    }
+    ASSERT_EQ(rig.h.write(), StepStatus::ok) << rig.h.block().fault_reason();
+  }
+  EXPECT_GE(rig.emulator->conversions(), 300u);
+  // The codes are where the shuffled map puts DAC_DATA (interleaved with ADC_DATA), and the
+  // default map's DAC_DATA place is outside this 0x800-byte window's data entirely.
+  rig.h.step();
+  auto window = lode::hal::RegisterWindow::open(rig.file.path, 0x200, layout->window);
+  ASSERT_TRUE(window) << window.error();
+  const auto latched = rig.emulator->latched_dac();
+  ASSERT_EQ(latched.size(), 2u);
+  EXPECT_EQ(window->read32(layout->dac_data.at(0)), latched[0]);
+  EXPECT_EQ(window->read32(layout->dac_data.at(1)), latched[1]);
+  EXPECT_NEAR(code_value(latched[1]), 7.5, 10.0 * lsb_v);
+  EXPECT_EQ(window->read32(layout->board_id) & layout->board_id_mask, layout->board_id_value);
+}
+
+TEST(VmePentekRegisterMap, ADriverOnAnotherMapThanTheBoardRefusesToStart) {
+  // The board (emulator) on the default map, the driver on the shuffled one: BOARD_ID is not
+  // where the driver looks, so activation refuses rather than exchanging garbage.
+  WindowFile file;
+  // A file long enough for the shuffled map's larger window, so the mapping itself succeeds.
+  ASSERT_TRUE(lode::hal::RegisterWindow::create_file(file.path, 0x200 + 0x800));
+  auto e = PentekEmulator::create(file.path, 0x200, Layout::default_layout(), 4, 2, loopback);
+  ASSERT_TRUE(e) << e.error();
+  BlockHarness h("io.vme_pentek", board_params(file.path, 20000.0, kShuffledMap), 1000.0);
+  h.feed("command", kCommand);
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  const auto st = h.activate();
+  ASSERT_FALSE(st);
+  EXPECT_NE(st.message().find("is not a Pentek-like 6102 pair"), std::string::npos) << st.message();
+}
+
+TEST(VmePentekRegisterMap, AnInvalidMapIsAConfigurationErrorNamingItsFileAndLine) {
+  WindowFile file;
+  const std::string map = file.path + ".regmap";
+  {
+    std::FILE* f = std::fopen(map.c_str(), "w");
+    ASSERT_NE(f, nullptr);
+    std::fputs("window 0x400\n# status moved off the end\nregister STATUS 0x402 ro\n", f);
+    std::fclose(f);
+  }
+  BlockHarness h("io.vme_pentek", board_params(file.path, 20000.0, map), 1000.0);
+  h.feed("command", kCommand);
+  EXPECT_FALSE(h.configure());
+  const std::string d = h.diagnostics();
+  EXPECT_NE(d.find("register_map: invalid register map:"), std::string::npos) << d;
+  EXPECT_NE(d.find(map + ":3: register STATUS: offset 0x402 is not a multiple of 4"), std::string::npos) << d;
+  EXPECT_NE(d.find(map + ":3: register TRIGGER: missing (io.vme_pentek needs it)"), std::string::npos) << d;
+  std::remove(map.c_str());
+  BlockHarness missing("io.vme_pentek", board_params(file.path, 20000.0, map), 1000.0);
+  missing.feed("command", kCommand);
+  EXPECT_FALSE(missing.configure());
+  EXPECT_NE(missing.diagnostics().find(map + ": cannot read the register map"), std::string::npos)
+      << missing.diagnostics();
+}
+
+TEST(VmePentekRegisterMap, MoreChannelsThanTheMapsArraysIsAConfigurationError) {
+  // The shuffled map has 8 ADC_DATA registers.
+  std::string params = "device: x\nregister_map: " + kShuffledMap + "\nadc:\n";
+  for (int i = 0; i < 9; ++i) params += "  - {name: a" + std::to_string(i) + "}\n";
+  BlockHarness h("io.vme_pentek", params, 1000.0);
+  EXPECT_FALSE(h.configure());
+  EXPECT_NE(h.diagnostics().find("at most 8 channels (ADC_DATA of the register map)"), std::string::npos)
+      << h.diagnostics();
 }
 
 TEST(VmePentek, ConfigurationErrorsNameTheField) {
