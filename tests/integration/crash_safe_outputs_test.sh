@@ -11,14 +11,11 @@ LODE=$1 EMU=$2 SRC=$3 BAD_PLUGINS=$4
 source "$(dirname "$0")/test_lib.sh"
 export LODE_PLUGIN_PATH="${LODE_PLUGIN_PATH:-}:$BAD_PLUGINS"
 
-WINDOW=$TMP/window
+source "$(dirname "$0")/vme_lib.sh"
 # 60 s, so nothing but the crash ends the run; 1.5 N safe forces (code 492), so "safe" cannot
-# be mistaken for registers never written. The emulator may be off the CPU for a while here.
-sed -e "s#device: /dev/shm/lode-vme-kawato#device: $WINDOW#" \
-    -e "s/conversion_timeout_us: [0-9]*/conversion_timeout_us: 300000/" \
-    -e "s/^duration_s: .*/duration_s: 60.0/" \
-    -e "s/gain: 10.0, unit: N, safe_value: 0.0 }/gain: 10.0, unit: N, safe_value: 1.5 }/" \
-    "$SRC/config/kawato_planar_vme.yaml" >"$TMP/vme.yaml"
+# be mistaken for registers never written.
+vme_config "$TMP/vme.yaml" -e "s/^duration_s: .*/duration_s: 60.0/" \
+  -e "s/gain: 10.0, unit: N, safe_value: 0.0 }/gain: 10.0, unit: N, safe_value: 1.5 }/"
 # The faulty block, one per way of crashing, at cycle 800 (1 s at 800 Hz).
 with_crash() {  # with_crash HOW OUT
   $PY - "$TMP/vme.yaml" "$1" >"$2" <<'PY'
@@ -34,21 +31,7 @@ with_crash throw "$TMP/throw.yaml"
 "$LODE" check "$TMP/segv.yaml" >"$TMP/check.out" 2>&1
 check_rc "the pipeline with the faulty block is valid" 0 $? "$TMP/check.out"
 
-"$EMU" "$TMP/vme.yaml" --sim "$SRC/config/kawato_planar.yaml" >"$TMP/emu.out" 2>&1 &
-EMU_PID=$!
-PIDS+=($EMU_PID)
-for _ in $(seq 1 100); do grep -q "serving" "$TMP/emu.out" && break; sleep 0.1; done
-grep -q "serving" "$TMP/emu.out" || { bad "emulator did not start"; cat "$TMP/emu.out"; exit 1; }
-
-# DAC_DATA[0..2] and DAC_LOAD as the register window holds them now.
-dac_registers() {
-  $PY - "$WINDOW" <<'PY'
-import sys, struct
-w = open(sys.argv[1], "rb").read()
-u32 = lambda off: struct.unpack_from("<I", w, off)[0]
-print("dac", " ".join("%d" % u32(0x200 + 4 * i) for i in range(3)), "load", u32(0x014))
-PY
-}
+start_emulator || exit 1
 
 crash_run() {  # crash_run NAME EXPECTED_RC SIGNAL_NAME
   (ulimit -c 0; exec "$LODE" run "$TMP/$1.yaml" --no-telemetry --no-local-control --quiet) >"$TMP/$1.out" 2>&1

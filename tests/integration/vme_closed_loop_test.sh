@@ -19,32 +19,8 @@ set -u
 LODE=$1 EMU=$2 SRC=$3
 source "$(dirname "$0")/test_lib.sh"
 
-WINDOW=$TMP/window
-# The emulator is a process sharing two loaded cores with the rest of ctest: it may be off the
-# CPU for milliseconds, so the conversion timeout is generous here (a board needs ~10 us).
-sed -e "s#device: /dev/shm/lode-vme-kawato#device: $WINDOW#" \
-    -e "s/conversion_timeout_us: [0-9]*/conversion_timeout_us: 300000/" \
-    "$SRC/config/kawato_planar_vme.yaml" >"$TMP/vme.yaml"
-
-start_emulator() {
-  "$EMU" "$TMP/vme.yaml" --sim "$SRC/config/kawato_planar.yaml" >"$TMP/emu.out" 2>&1 &
-  EMU_PID=$!
-  PIDS+=($EMU_PID)
-  for _ in $(seq 1 100); do grep -q "serving" "$TMP/emu.out" && return 0; sleep 0.1; done
-  bad "emulator did not start"; cat "$TMP/emu.out"; return 1
-}
-
-# DAC_DATA[i] and DAC_LOAD as the register window holds them now. Default map: DAC_DATA at
-# 0x200 + 4i, DAC_LOAD at 0x014; dac_registers WINDOW DAC_DATA STRIDE DAC_LOAD for another.
-dac_registers() {
-  $PY - "${1:-$WINDOW}" "${2:-0x200}" "${3:-4}" "${4:-0x014}" <<'PY'
-import sys, struct
-w = open(sys.argv[1], "rb").read()
-base, stride, load = (int(a, 0) for a in sys.argv[2:5])
-u32 = lambda off: struct.unpack_from("<I", w, off)[0]
-print("dac", " ".join("%d" % u32(base + stride * i) for i in range(3)), "load", u32(load))
-PY
-}
+source "$(dirname "$0")/vme_lib.sh"
+vme_config "$TMP/vme.yaml"
 
 # 1. Closed loop, compared with io.sim.
 start_emulator || exit 1
@@ -58,32 +34,7 @@ contains "after the run the DAC registers hold the safe codes" "$TMP/dac_end.txt
 "$LODE" run "$SRC/config/kawato_planar.yaml" --no-telemetry --no-local-control --quiet --record "$TMP/sim.h5" \
   >"$TMP/sim.out" 2>&1
 check_rc "the same pipeline through io.sim" 0 $? "$TMP/sim.out"
-$PY - "$TMP/vme.h5" "$TMP/sim.h5" <<'PY' || bad "VME and io.sim runs differ beyond quantization"
-import sys, h5py, numpy as np
-vme, sim = h5py.File(sys.argv[1], "r"), h5py.File(sys.argv[2], "r")
-def series(f, sig):
-    g = f["signals/" + sig]
-    return np.column_stack([g[n][:] for n in g.attrs["names"]])
-n = min(len(series(vme, "kf.pose")), len(series(sim, "kf.pose")))
-assert n >= 2400, n
-d = np.abs(series(vme, "kf.pose")[:n] - series(sim, "kf.pose")[:n])
-s = np.abs(series(vme, "stage.signals")[:n] - series(sim, "stage.signals")[:n])
-lsb = 20.0 / 65536
-print("kf.pose max |VME - io.sim|: x %.3g m, y %.3g m, theta_z %.3g rad over %d cycles" % (d[:, 0].max(), d[:, 1].max(), d[:, 2].max(), n))
-print("stage.signals max |VME - io.sim| %.3g V (%.2f LSB); samples that differ: %d of %d" % (s.max(), s.max() / lsb, int((s > 0).sum()), s.size))
-ctrl_v = series(vme, "ctrl.out")[:n]
-print("forces: max |fx| %.3g N, |fy| %.3g N, |tz| %.3g N*m" % tuple(np.abs(ctrl_v).max(axis=0)))
-# The ADC path is the same converter and the same noise; the DAC's 16-bit codes quantize the
-# forces, the plant moves a little differently, and now and then a Hall sample lands one code
-# away. Within quantization means: ADC samples at most one code apart, and the estimates apart
-# by less than the single-sample noise of the GLSDC pose (what one code's flip moves it by is
-# a fraction of that).
-noise = np.std(series(sim, "glsdc.pose")[:n] - series(sim, "stage.truth")[:n], axis=0)
-print("GLSDC single-sample noise std (io.sim run): x %.3g m, y %.3g m, theta_z %.3g rad" % tuple(noise))
-print("max difference / noise std: %.2f %.2f %.2f" % tuple(d.max(axis=0) / noise))
-assert (d.max(axis=0) < noise).all(), (d.max(axis=0), noise)
-assert s.max() <= lsb + 1e-12, s.max()
-PY
+$PY "$(dirname "$0")/compare_with_sim.py" "$TMP/vme.h5" "$TMP/sim.h5" VME || bad "VME and io.sim runs differ beyond quantization"
 
 # 2. The emulator stops answering mid-run.
 sed -e "s/^duration_s: .*/duration_s: 60.0/" "$TMP/vme.yaml" >"$TMP/vme_long.yaml"

@@ -111,28 +111,7 @@ contains "after SIGKILL the module holds the non-zero safe outputs" "$TMP/out/ki
   >"$TMP/sim.out" 2>&1
 check_rc "the same pipeline through io.sim" 0 $? "$TMP/sim.out"
 if [ -f "$TMP/out/can.h5" ]; then
-$PY - "$TMP/out/can.h5" "$TMP/sim.h5" <<'PY' || bad "CAN and io.sim runs differ beyond quantization"
-import sys, h5py, numpy as np
-can, sim = h5py.File(sys.argv[1], "r"), h5py.File(sys.argv[2], "r")
-def series(f, sig):
-    g = f["signals/" + sig]
-    return np.column_stack([g[n][:] for n in g.attrs["names"]])
-n = min(len(series(can, "kf.pose")), len(series(sim, "kf.pose")))
-assert n >= 2400, n
-d = np.abs(series(can, "kf.pose")[:n] - series(sim, "kf.pose")[:n])
-s = np.abs(series(can, "stage.signals")[:n] - series(sim, "stage.signals")[:n])
-lsb = 20.0 / 65536
-print("kf.pose max |CAN - io.sim|: x %.3g m, y %.3g m, theta_z %.3g rad over %d cycles" % (d[:, 0].max(), d[:, 1].max(), d[:, 2].max(), n))
-print("stage.signals max |CAN - io.sim| %.3g V (%.2f LSB); samples that differ: %d of %d" % (s.max(), s.max() / lsb, int((s > 0).sum()), s.size))
-# As for the VME board: the ADC path carries the same codes; the forces are quantized to the
-# RPDO's counts, so the plant moves a little differently and a Hall sample may land one code
-# away. Within quantization: inputs at most one count apart, estimates apart by less than the
-# GLSDC pose's single-sample noise.
-noise = np.std(series(sim, "glsdc.pose")[:n] - series(sim, "stage.truth")[:n], axis=0)
-print("max difference / GLSDC noise std: %.2f %.2f %.2f" % tuple(d.max(axis=0) / noise))
-assert (d.max(axis=0) < noise).all(), (d.max(axis=0), noise)
-assert s.max() <= lsb + 1e-12, s.max()
-PY
+$PY "$SRC/tests/integration/compare_with_sim.py" "$TMP/out/can.h5" "$TMP/sim.h5" CAN || bad "CAN and io.sim runs differ beyond quantization"
 else
   bad "the closed-loop recording came back from the guest"
 fi
