@@ -14,6 +14,7 @@ namespace lode {
 namespace {
 
 constexpr int kFatalSignals[] = {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT};
+constexpr std::size_t kAlternateStackBytes = 64 * 1024;  // the handler needs little; overflow margin
 
 std::atomic<Pipeline*> g_pipeline{nullptr};
 std::atomic<int> g_handled{0};
@@ -57,7 +58,7 @@ extern "C" void on_fatal_signal(int sig, siginfo_t* /*info*/, void* /*context*/)
 CrashGuard::CrashGuard(Pipeline& pipeline) {
   if (!g_installed) {
     // An alternate stack, so a stack overflow (SIGSEGV on a full stack) still runs the handler.
-    static char alternate_stack[64 * 1024];
+    static char alternate_stack[kAlternateStackBytes];
     stack_t ss{};
     ss.ss_sp = alternate_stack;
     ss.ss_size = sizeof alternate_stack;
@@ -81,6 +82,20 @@ CrashGuard::~CrashGuard() {
       (void)sigaction(kFatalSignals[i], &g_previous[i], nullptr);
     g_installed = false;
   }
+}
+
+AlternateSignalStack::AlternateSignalStack() : stack_(new char[kAlternateStackBytes]) {
+  stack_t ss{};
+  ss.ss_sp = stack_.get();
+  ss.ss_size = kAlternateStackBytes;
+  installed_ = sigaltstack(&ss, nullptr) == 0;
+}
+
+AlternateSignalStack::~AlternateSignalStack() {
+  if (!installed_) return;
+  stack_t off{};
+  off.ss_flags = SS_DISABLE;
+  (void)sigaltstack(&off, nullptr);  // before the memory goes
 }
 
 }  // namespace lode

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <thread>
 
+#include "lode/crash_guard.hpp"
 #include "lode/realtime.hpp"
 #include "lode/rt_log.hpp"
 
@@ -168,6 +169,7 @@ RunResult Scheduler::run_real(std::uint64_t cycles, const std::atomic<bool>& sto
 
   std::thread rt([&] {
     pthread_setname_np(pthread_self(), "lode-rt");
+    const AlternateSignalStack crash_stack;  // a stack overflow here still reaches CrashGuard
     thread_warnings = apply_thread_realtime(rts);
     const std::int64_t period = pipeline_.period_ns();
     Tick tick;

@@ -4,7 +4,9 @@
 # with a bug (tests/core/bad_plugins/crashes_in_step.cpp) kills `lode run` mid-run:
 #  1. a write through a null pointer: lode dies of SIGSEGV (exit status 139 as before), says
 #     the outputs were driven safe, and the DAC registers hold the safe codes, latched;
-#  2. an exception escaping the noexcept step() (std::terminate -> SIGABRT): the same.
+#  2. an exception escaping the noexcept step() (std::terminate -> SIGABRT): the same;
+#  3. a stack overflow on the RT thread (SIGSEGV with no stack left: the handler runs on the
+#     thread's alternate signal stack): the same.
 # usage: crash_safe_outputs_test.sh LODE LODE_VME_EMU SRC BAD_PLUGIN_DIR
 set -u
 LODE=$1 EMU=$2 SRC=$3 BAD_PLUGINS=$4
@@ -28,6 +30,7 @@ PY
 }
 with_crash segv "$TMP/segv.yaml"
 with_crash throw "$TMP/throw.yaml"
+with_crash overflow "$TMP/overflow.yaml"
 "$LODE" check "$TMP/segv.yaml" >"$TMP/check.out" 2>&1
 check_rc "the pipeline with the faulty block is valid" 0 $? "$TMP/check.out"
 
@@ -44,6 +47,7 @@ crash_run() {  # crash_run NAME EXPECTED_RC SIGNAL_NAME
 }
 crash_run segv 139 SIGSEGV
 crash_run throw 134 SIGABRT
+crash_run overflow 139 SIGSEGV
 
 kill -TERM $EMU_PID
 wait $EMU_PID

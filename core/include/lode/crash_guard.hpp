@@ -9,8 +9,11 @@
 //
 // drive_safe() is called from a signal handler here, so io blocks keep it async-signal-safe
 // (register writes, send(2); no allocation, no lock), as the RT rules already require. The
-// handlers run on an alternate stack, so a stack overflow is caught too.
+// handlers run on an alternate stack, so a stack overflow is caught too: the constructing
+// thread's, and each thread holding an AlternateSignalStack (the scheduler's RT thread does).
 #pragma once
+
+#include <memory>
 
 namespace lode {
 
@@ -22,6 +25,20 @@ class CrashGuard {
   ~CrashGuard();
   CrashGuard(const CrashGuard&) = delete;
   CrashGuard& operator=(const CrashGuard&) = delete;
+};
+
+/// An alternate signal stack for the calling thread while this object lives (sigaltstack is per
+/// thread). Made at a thread's start, off the RT path: it allocates.
+class AlternateSignalStack {
+ public:
+  AlternateSignalStack();
+  ~AlternateSignalStack();
+  AlternateSignalStack(const AlternateSignalStack&) = delete;
+  AlternateSignalStack& operator=(const AlternateSignalStack&) = delete;
+
+ private:
+  std::unique_ptr<char[]> stack_;
+  bool installed_ = false;
 };
 
 }  // namespace lode
