@@ -7,7 +7,9 @@ export PATH=/bin:/sbin:/usr/bin
 mount -t proc proc /proc
 mount -t sysfs sys /sys
 mount -t devtmpfs dev /dev
-mkdir -p /tmp /dev/shm && mount -t tmpfs tmp /tmp && mount -t tmpfs shm /dev/shm
+# The initramfs root is already a writable tmpfs: no tmpfs over /tmp, where the build (copied
+# in at its own absolute path) may live.
+mkdir -p /tmp /dev/shm && mount -t tmpfs shm /dev/shm
 echo "GUEST: kernel $(uname -r), $(grep -c ^processor /proc/cpuinfo) CPU, up $(cut -d' ' -f1 /proc/uptime) s"
 if modprobe vcan && modprobe can-raw && ip link add dev vcan0 type vcan && ip link set up vcan0; then
   echo "GUEST: vcan0 up"
