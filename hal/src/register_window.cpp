@@ -12,14 +12,6 @@
 
 namespace lode::hal {
 
-namespace {
-std::string hex(std::uint64_t v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "0x%llx", static_cast<unsigned long long>(v));
-  return buf;
-}
-}  // namespace
-
 RegisterWindow::~RegisterWindow() { unmap(); }
 
 RegisterWindow::RegisterWindow(RegisterWindow&& other) noexcept { *this = std::move(other); }

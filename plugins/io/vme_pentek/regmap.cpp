@@ -7,6 +7,8 @@
 #include <map>
 #include <vector>
 
+#include "lode/hal/register_window.hpp"  // hal::hex
+
 namespace lode::vme {
 
 Layout Layout::default_layout() {
@@ -42,11 +44,7 @@ namespace {
 constexpr std::size_t kMaxErrors = 20;     // a file of garbage gives a readable message
 constexpr std::size_t kMaxNameLength = 64;
 
-std::string hex(std::uint64_t v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "0x%llx", static_cast<unsigned long long>(v));
-  return buf;
-}
+using hal::hex;
 
 /// Arbitrary input bytes, made printable and short for a message.
 std::string quoted(std::string_view s) {

@@ -12,11 +12,7 @@ namespace lode::plugins {
 
 namespace {
 
-std::string hex(std::uint64_t v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "0x%llx", static_cast<unsigned long long>(v));
-  return buf;
-}
+using hal::hex;
 
 /// One `adc:` or `dac:` list entry. Problems are reported on the entry's own keys.
 hal::AnalogChannel parse_channel(Params& p, bool output) {

@@ -15,11 +15,19 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
 #include <string>
 
 #include "lode/status.hpp"
 
 namespace lode::hal {
+
+/// An offset or register value as "0x1f4", for messages about windows and registers.
+inline std::string hex(std::uint64_t v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "0x%llx", static_cast<unsigned long long>(v));
+  return buf;
+}
 
 class RegisterWindow {
  public:
