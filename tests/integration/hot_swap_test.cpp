@@ -141,6 +141,7 @@ std::array<double, 3> kalman_gain(const double* p, double r) {
 }
 
 TEST(HotSwap, ThousandSwapsKalmanHybridAt5kHzKeepTheLoopAndBoundTheJump) {
+  LODE_REQUIRE_ALLOCATION_COUNTING();
   Rig rig(read_config("kawato_planar_swap.yaml"));
   ASSERT_TRUE(rig.pipeline) << rig.diagnostics.format();
   ASSERT_TRUE(rig.activated);
@@ -247,9 +248,7 @@ TEST(HotSwap, ThousandSwapsKalmanHybridAt5kHzKeepTheLoopAndBoundTheJump) {
   // RT cost: measured above; asserted only loosely here (shared, noisy machine; the figure is
   // the benchmark's, tests/bench/hot_swap_bench.cpp).
   EXPECT_LT(costs[costs.size() / 2], 20000.0);
-  if (lode::testing::allocation_counting_available()) {
-    EXPECT_EQ(rig.rt_allocations, 0u);
-  }
+  EXPECT_EQ(rig.rt_allocations, 0u);
 }
 
 TEST(HotSwap, ColdStartWouldJumpFarMoreThanAWarmStart) {

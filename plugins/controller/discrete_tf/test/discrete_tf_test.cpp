@@ -495,6 +495,7 @@ TEST(ControllerDiscreteTf, OutputNamesAndDescribe) {
 }
 
 TEST(ControllerDiscreteTf, StepDoesNotAllocate) {
+  LODE_REQUIRE_ALLOCATION_COUNTING();
   BlockHarness h("controller.discrete_tf", std::string(kThesisAxes) + "output_limit: 5\n", kRateHz);
   h.feed("measurement", kPose);
   h.feed("reference", {{"x_ref", "m"}, {"y_ref", "m"}, {"theta_ref", "rad"}});

@@ -210,7 +210,7 @@ TEST(ArctanEncoder, ConfigurationErrorsAreLocated) {
 }
 
 TEST(ArctanEncoder, StepDoesNotAllocate) {
-  if (!lode::testing::allocation_counting_available()) GTEST_SKIP() << "sanitizer build";
+  LODE_REQUIRE_ALLOCATION_COUNTING();
   BlockHarness h("estimator.arctan_encoder", "pitch_m: 4.0e-6\nmethod: arcsin_arccos\n", kRate);
   h.feed("signals", {{"sin", "V"}, {"cos", "V"}});
   ASSERT_TRUE(h.configure()) << h.diagnostics();

@@ -466,7 +466,7 @@ TEST(EkfEncoder, ConfigurationErrorsAreLocated) {
 }
 
 TEST(EkfEncoder, StepDoesNotAllocate) {
-  if (!lode::testing::allocation_counting_available()) GTEST_SKIP() << "sanitizer build";
+  LODE_REQUIRE_ALLOCATION_COUNTING();
   BlockHarness h("estimator.ekf_encoder", "model: head\nnoise_std_v: [0.0075, 0.005]\n", 20000.0, kModels);
   h.feed("signals", {{"sin", "V"}, {"cos", "V"}});
   ASSERT_TRUE(h.configure()) << h.diagnostics();

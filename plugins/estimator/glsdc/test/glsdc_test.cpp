@@ -679,6 +679,7 @@ TEST(GlsdcModes, ThreeSensorsConvergeAndBoundTheRotationNoise) {
 // ---------------------------------------------------------------------------------------
 
 TEST(GlsdcRealTime, StepDoesNotAllocate) {
+  LODE_REQUIRE_ALLOCATION_COUNTING();
   Truth truth("[1, 5]");
   ASSERT_TRUE(truth.ok());
   Rig rig("model: hall", hall_model("hall", "[1, 5]"));
@@ -850,6 +851,7 @@ TEST(GlsdcInvalid, PropagateMakesTheCycleNaNAndKeepsTheWarmStart) {
 }
 
 TEST(GlsdcState, ExportImportDoNotAllocate) {
+  LODE_REQUIRE_ALLOCATION_COUNTING();
   Truth truth("[1, 5]");
   ASSERT_TRUE(truth.ok());
   Rig rig("model: hall", hall_model("hall", "[1, 5]"));

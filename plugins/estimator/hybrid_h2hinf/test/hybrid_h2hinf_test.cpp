@@ -485,6 +485,7 @@ TEST(HybridBlock, PredictedOutputIsOneStepAhead) {
 }
 
 TEST(HybridBlock, StepAllocatesNothing) {
+  LODE_REQUIRE_ALLOCATION_COUNTING();
   Rig rig(kPaperParams, kSixAxes);
   ASSERT_TRUE(rig.status) << rig.h.diagnostics();
   rig.block().set_mixing(0.8);
@@ -570,6 +571,7 @@ TEST(HybridTunables, RefusedDChangesNothing) {
 }
 
 TEST(HybridTunables, SetTunableAllocatesNothing) {
+  LODE_REQUIRE_ALLOCATION_COUNTING();
   Rig rig(kPaperParams, kSixAxes);
   ASSERT_TRUE(rig.status) << rig.h.diagnostics();
   Block& block = rig.h.block();
@@ -847,6 +849,7 @@ TEST(HybridInvalid, PredictCoastsTheAxisWithANaNAndFaultModeIsUnchanged) {
 }
 
 TEST(HybridState, ExportImportInnovationAllocateNothing) {
+  LODE_REQUIRE_ALLOCATION_COUNTING();
   Rig rig(kPaperParams, kSixAxes);
   ASSERT_TRUE(rig.status) << rig.h.diagnostics();
   const StateLayout layout = rig.h.block().state_layout();

@@ -461,6 +461,7 @@ TEST(EstimatorKalman, DescribeConstantVelocity) {
 }
 
 TEST(EstimatorKalman, StepDoesNotAllocate) {
+  LODE_REQUIRE_ALLOCATION_COUNTING();
   for (const char* motion : {"constant_acceleration", "constant_velocity"}) {
     BlockHarness h("estimator.kalman", std::string("motion: ") + motion + "\nq: [100, 100, 1e5]\n", kRateHz);
     h.feed("measurement", kPose);
@@ -792,6 +793,7 @@ TEST(EstimatorKalmanInvalid, FaultModeIsTheDefaultAndUnchanged) {
 }
 
 TEST(EstimatorKalmanState, ExportImportInnovationDoNotAllocate) {
+  LODE_REQUIRE_ALLOCATION_COUNTING();
   for (const char* motion : {"constant_acceleration", "constant_velocity"}) {
     BlockHarness h("estimator.kalman", std::string("motion: ") + motion + "\nq: [100, 100, 1e5]\nr: 1e-10\n", kRateHz);
     h.feed("measurement", kPose);

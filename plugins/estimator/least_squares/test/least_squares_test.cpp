@@ -159,6 +159,7 @@ TEST(LeastSquares, ConfigurationErrorsAreReported) {
 }
 
 TEST(LeastSquares, FaultsAndAllocatesNothing) {
+  LODE_REQUIRE_ALLOCATION_COUNTING();
   BlockHarness h("estimator.least_squares", "models: [hall, laser]\nnoise_std_v: 1.0e-3\niterations: 2", kRateHz,
                  kModels);
   Elements channels = {{"A_a", "V"}, {"A_b", "V"}, {"B_a", "V"}, {"B_b", "V"}, {"C_a", "V"}, {"C_b", "V"}};

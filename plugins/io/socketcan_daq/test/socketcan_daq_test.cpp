@@ -338,7 +338,7 @@ TEST(SocketCanDaq, DeactivateDrivesTheOutputsSafeAndStopsTheNode) {
 TEST(SocketCanDaq, ACycleAllocatesNothing) {
   Rig rig;
   ASSERT_TRUE(rig.ok);
-  if (!lode::testing::allocation_counting_available()) GTEST_SKIP() << "allocation counter not linked";
+  LODE_REQUIRE_ALLOCATION_COUNTING();
   const auto before = lode::testing::allocation_count();
   for (int k = 0; k < 300; ++k) ASSERT_EQ(rig.cycle(0.01 * k, 0.0), "");
   EXPECT_EQ(lode::testing::allocation_count() - before, 0u);

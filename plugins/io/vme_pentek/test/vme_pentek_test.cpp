@@ -239,7 +239,7 @@ TEST(VmePentek, DeactivateDrivesTheOutputsSafe) {
 TEST(VmePentek, ACycleAllocatesNothing) {
   Rig rig;
   ASSERT_TRUE(rig.ok);
-  if (!lode::testing::allocation_counting_available()) GTEST_SKIP() << "allocation counter not linked";
+  LODE_REQUIRE_ALLOCATION_COUNTING();
   const auto before = lode::testing::allocation_count();
   for (int k = 0; k < 500; ++k) {
     rig.h.input("command")[0] = 0.01 * k;

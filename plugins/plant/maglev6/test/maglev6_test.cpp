@@ -196,6 +196,7 @@ TEST(Maglev6, ModeMatricesAreTheSpecStateSpace) {
 }
 
 TEST(Maglev6, AdvanceAllocatesNothing) {
+  LODE_REQUIRE_ALLOCATION_COUNTING();
   Maglev6 plant;
   const std::array<double, 6> u = {0.3, -0.2, 0.1, 0.02, -0.01, 0.005};
   std::array<double, 12> x{}, next{}, f{};
