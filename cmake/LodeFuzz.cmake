@@ -4,7 +4,8 @@
 # libFuzzer with AddressSanitizer and UBSan over code that needs only the standard library and
 # lode headers (the CAN frame decoder, the VME register-map parser): a fixed budget of runs
 # from a seed corpus, seed 1, as a ctest. Built with clang++ directly, since the project
-# compiles with g++. Without clang++ (setup.sh installs it) the test is left out, with a note.
+# compiles with g++. Without clang++ (setup.sh installs it) the test is a stand-in that fails
+# (or skips, with LODE_REQUIRE_TEST_TOOLS=OFF) naming what to install.
 find_program(LODE_CLANGXX NAMES clang++-14 clang++)
 
 function(lode_add_fuzz_test)
@@ -13,7 +14,8 @@ function(lode_add_fuzz_test)
     return()
   endif()
   if(NOT LODE_CLANGXX)
-    message(STATUS "clang++ not found: the fuzz test ${F_NAME} is not built; setup.sh installs clang")
+    lode_add_unavailable_test(NAME ${F_NAME}
+      WHY "clang++ not found (apt-get install clang libclang-rt-14-dev): libFuzzer cannot build ${F_TARGET}")
     return()
   endif()
   set(fuzzer ${CMAKE_CURRENT_BINARY_DIR}/${F_TARGET})

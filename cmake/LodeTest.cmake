@@ -17,3 +17,27 @@ function(lode_add_test)
     PROPERTIES ENVIRONMENT "LODE_PLUGIN_PATH=${LODE_BUILD_PLUGIN_DIR}" TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}"
     DISCOVERY_TIMEOUT 60)
 endfunction()
+
+# lode_add_unavailable_test(NAME <name> WHY <what is missing and how to install it>)
+# Stands in for a test whose tool is missing on this machine, so the check never silently
+# disappears: it fails with WHY when LODE_REQUIRE_TEST_TOOLS is ON (the test set-up installs
+# every tool), and is reported as skipped with WHY otherwise.
+function(lode_add_unavailable_test)
+  cmake_parse_arguments(U "" "NAME;WHY" "" ${ARGN})
+  if(LODE_REQUIRE_TEST_TOOLS)
+    add_test(NAME ${U_NAME} COMMAND sh -c "echo 'FAIL: ${U_WHY}'; exit 1")
+    message(STATUS "${U_NAME}: ${U_WHY}: the test fails until it is installed")
+  else()
+    add_test(NAME ${U_NAME} COMMAND sh -c "echo 'SKIP: ${U_WHY}'; exit 77")
+    set_tests_properties(${U_NAME} PROPERTIES SKIP_RETURN_CODE 77)
+    message(WARNING "${U_NAME}: ${U_WHY}: the test is skipped (LODE_REQUIRE_TEST_TOOLS=OFF)")
+  endif()
+endfunction()
+
+# lode_allow_tool_skip(<test>): a script test that exits 77 when a tool it needs is missing
+# is reported as skipped only when LODE_REQUIRE_TEST_TOOLS is OFF; otherwise 77 is a failure.
+function(lode_allow_tool_skip test)
+  if(NOT LODE_REQUIRE_TEST_TOOLS)
+    set_tests_properties(${test} PROPERTIES SKIP_RETURN_CODE 77)
+  endif()
+endfunction()

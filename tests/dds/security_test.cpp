@@ -40,6 +40,7 @@
 #include <fastdds/dds/subscriber/qos/DataReaderQos.hpp>
 #include <fastdds/dds/topic/Topic.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
+#include "lode/testing/require.hpp"
 
 #include "lode/dds/participant.hpp"
 #include "lode_msgs.h"
@@ -245,7 +246,7 @@ class SecurityTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     if (std::system("command -v openssl >/dev/null 2>&1") != 0) {
-      skip_reason_ = "openssl is not installed: tools/dds-security/make-lab-certs.sh needs it";
+      skip_reason_ = "openssl is not installed (apt-get install openssl): tools/dds-security/make-lab-certs.sh needs it";
       return;
     }
     std::string dir_template = (std::filesystem::temp_directory_path() / "lode_dds_security_XXXXXX").string();
@@ -278,9 +279,7 @@ class SecurityTest : public ::testing::Test {
     }
   }
   void SetUp() override {
-    if (!skip_reason_.empty()) {
-      GTEST_SKIP() << skip_reason_;
-    }
+    if (!skip_reason_.empty()) LODE_TOOL_MISSING(skip_reason_);
     ASSERT_TRUE(setup_error_.empty()) << setup_error_;
   }
 

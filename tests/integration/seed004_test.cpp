@@ -33,6 +33,7 @@
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
 #include "lode/testing/harness.hpp"
+#include "lode/testing/require.hpp"
 
 namespace {
 
@@ -305,22 +306,9 @@ double rms_difference(const std::vector<Vec6>& a, const std::vector<Vec6>& b, st
   return std::sqrt(sum / static_cast<double>(n));
 }
 
-bool plugins_built(std::initializer_list<const char*> names) {
-  const char* path = std::getenv("LODE_PLUGIN_PATH");
-  if (path == nullptr) return false;
-  for (const char* name : names) {
-    std::ifstream f(std::string(path) + "/lode-" + name + ".so");
-    if (!f) return false;
-  }
-  return true;
-}
-
-#define REQUIRE_CHAIN()                                                                                        \
-  if (!plugins_built({"io.sim", "plant.rigid_body6", "sensor.capacitive_gap", "estimator.gap_pose",             \
-                      "estimator.npo"}))                                                                       \
-  GTEST_SKIP() << "the seed-004 plugins are not built"
-#define REQUIRE_LPF()                                                                                          \
-  if (!plugins_built({"filter.biquad"})) GTEST_SKIP() << "filter.biquad is not built"
+#define REQUIRE_CHAIN() \
+  LODE_REQUIRE_PLUGINS("io.sim", "plant.rigid_body6", "sensor.capacitive_gap", "estimator.gap_pose", "estimator.npo")
+#define REQUIRE_LPF() LODE_REQUIRE_PLUGINS("filter.biquad")
 
 std::vector<Motion> all_motions() { return {steps_e1_e3(), reciprocating_e4(), circle_e5()}; }
 
@@ -793,7 +781,7 @@ TEST(Seed004, S6CircleAmplitudeAndQuadrature) {
 TEST(Seed004, ShippedPipelineTracksTheStepsWithTheObserverInTheLoop) {
   REQUIRE_CHAIN();
   REQUIRE_LPF();
-  if (!plugins_built({"controller.lq_integral", "source.step"})) GTEST_SKIP() << "lq_integral / source.step not built";
+  LODE_REQUIRE_PLUGINS("controller.lq_integral", "source.step");
   lode::PluginRegistry registry;
   lode::Diagnostics diagnostics;
   auto p = lode::Pipeline::load_file(LODE_SOURCE_DIR "/config/npo_velocity.yaml", registry, diagnostics);

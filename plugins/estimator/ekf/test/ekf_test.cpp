@@ -16,20 +16,13 @@
 #include <vector>
 
 #include "lode/testing/allocation_counter.hpp"
+#include "lode/testing/require.hpp"
 #include "lode/testing/harness.hpp"
 #include "lode/testing/state_export.hpp"
 
 namespace {
 
 constexpr double kDt = 0.5e-3;
-
-bool plugin_built(const std::string& name) {
-  const char* path = std::getenv("LODE_PLUGIN_PATH");
-  const std::string folder = path ? path : LODE_BINARY_DIR "/plugins";
-  return std::filesystem::exists(folder + "/lode-" + name + ".so");
-}
-
-bool models_built() { return plugin_built("plant.suspension") && plugin_built("sensor.hall_gap"); }
 
 std::string exact(double v) {
   char buffer[40];
@@ -140,7 +133,7 @@ std::vector<Eigen::Vector3d> run_block(lode::testing::BlockHarness& h, const Ben
 }
 
 TEST(EkfBlock, EqualsTheWrittenOutEkfWithTheAnalyticJacobian) {
-  if (!models_built()) GTEST_SKIP() << "plant.suspension / sensor.hall_gap not built";
+  LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
   const Benchmark bm = make_benchmark(4000);
   lode::testing::BlockHarness h("estimator.ekf", block(bm), 2000.0, kModels);
   const auto ours = run_block(h, bm);
@@ -159,7 +152,7 @@ TEST(EkfBlock, EqualsTheWrittenOutEkfWithTheAnalyticJacobian) {
 }
 
 TEST(EkfBlock, CentralDifferencesAgreeWithTheAnalyticJacobian) {
-  if (!models_built()) GTEST_SKIP() << "plant.suspension / sensor.hall_gap not built";
+  LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
   const Benchmark bm = make_benchmark(3000);
   lode::testing::BlockHarness analytic("estimator.ekf", block(bm), 2000.0, kModels);
   lode::testing::BlockHarness numerical("estimator.ekf", block(bm, "jacobian: numerical\n"), 2000.0, kModels);
@@ -175,7 +168,7 @@ TEST(EkfBlock, CentralDifferencesAgreeWithTheAnalyticJacobian) {
 }
 
 TEST(EkfBlock, Rk4ProcessModelIsDifferentiatedNumerically) {
-  if (!models_built()) GTEST_SKIP() << "plant.suspension / sensor.hall_gap not built";
+  LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
   const Benchmark bm = make_benchmark(2000);
   lode::testing::BlockHarness h("estimator.ekf", block(bm, "", "plant_rk4"), 2000.0, kModels);
   const auto out = run_block(h, bm);
@@ -192,7 +185,8 @@ TEST(EkfBlock, Rk4ProcessModelIsDifferentiatedNumerically) {
 }
 
 TEST(EkfBlock, CovarianceStaysSymmetricPositive) {
-  if (!models_built()) GTEST_SKIP() << "plant.suspension / sensor.hall_gap not built";
+  LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
+  LODE_REQUIRE_ALLOCATION_COUNTING();
   const Benchmark bm = make_benchmark(10000);
   lode::testing::BlockHarness h("estimator.ekf", block(bm), 2000.0, kModels);
   h.feed("measurement", {{"gap", "m"}});
@@ -209,9 +203,7 @@ TEST(EkfBlock, CovarianceStaysSymmetricPositive) {
     ASSERT_EQ(h.step(), lode::StepStatus::ok) << h.block().fault_reason();
     for (std::size_t i = 0; i < 3; ++i) ASSERT_GT(std_out[i], 0.0);
   }
-  if (lode::testing::allocation_counting_available()) {
-    EXPECT_EQ(lode::testing::allocation_count() - before, 0u) << "step() allocated";
-  }
+  EXPECT_EQ(lode::testing::allocation_count() - before, 0u) << "step() allocated";
   auto& ekf = dynamic_cast<lode::plugins::ExtendedEstimator&>(h.block());
   const auto& P = ekf.covariance();
   EXPECT_LT((P - P.transpose()).cwiseAbs().maxCoeff(), 1e-300 + 1e-15 * P.cwiseAbs().maxCoeff());
@@ -219,7 +211,7 @@ TEST(EkfBlock, CovarianceStaysSymmetricPositive) {
 }
 
 TEST(EkfBlock, FaultsOnNonFiniteMeasurement) {
-  if (!models_built()) GTEST_SKIP() << "plant.suspension / sensor.hall_gap not built";
+  LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
   const Benchmark bm = make_benchmark(10);
   lode::testing::BlockHarness h("estimator.ekf", block(bm), 2000.0, kModels);
   h.feed("measurement", {{"gap", "m"}});
@@ -233,7 +225,7 @@ TEST(EkfBlock, FaultsOnNonFiniteMeasurement) {
 }
 
 TEST(EkfBlock, UnknownJacobianChoiceAndMissingInputAreErrors) {
-  if (!models_built()) GTEST_SKIP() << "plant.suspension / sensor.hall_gap not built";
+  LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
   const Benchmark bm = make_benchmark(2);
   lode::testing::BlockHarness h("estimator.ekf", block(bm, "jacobian: symbolic\n"), 2000.0, kModels);
   h.feed("measurement", {{"gap", "m"}});

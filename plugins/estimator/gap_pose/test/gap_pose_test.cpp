@@ -16,21 +16,12 @@
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
 #include "lode/testing/allocation_counter.hpp"
+#include "lode/testing/require.hpp"
 #include "lode/testing/harness.hpp"
 
 namespace {
 
 constexpr double kRateHz = 2500.0;
-
-bool plugin_built(const std::string& name) {
-  const char* path = std::getenv("LODE_PLUGIN_PATH");
-  if (path == nullptr) return false;
-  return std::filesystem::exists(std::filesystem::path(path) / ("lode-" + name + ".so"));
-}
-
-bool chain_built() {
-  return plugin_built("io.sim") && plugin_built("plant.rigid_body6") && plugin_built("sensor.capacitive_gap");
-}
 
 std::string pipeline_yaml(const std::array<double, 6>& pose, const std::array<double, 6>& velocity, double noise_v,
                           int iterations) {
@@ -79,7 +70,7 @@ struct Chain {
 };
 
 TEST(GapPose, RecoversLargePosesToRounding) {
-  if (!chain_built()) GTEST_SKIP() << "io.sim, plant.rigid_body6 or sensor.capacitive_gap is not built";
+  LODE_REQUIRE_PLUGINS("io.sim", "plant.rigid_body6", "sensor.capacitive_gap");
   const std::array<std::array<double, 6>, 4> poses{{
       {1e-6, -5e-7, 2.5e-7, 1e-6, 4e-6, -2e-6},         // the experiments' scale
       {4e-4, -3e-4, 2e-4, 0.01, -0.008, 0.02},          // +-0.4 mm, 20 mrad
@@ -100,7 +91,7 @@ TEST(GapPose, RecoversLargePosesToRounding) {
 }
 
 TEST(GapPose, FollowsAMovingBodyWithOneStepPerTick) {
-  if (!chain_built()) GTEST_SKIP() << "io.sim, plant.rigid_body6 or sensor.capacitive_gap is not built";
+  LODE_REQUIRE_PLUGINS("io.sim", "plant.rigid_body6", "sensor.capacitive_gap");
   // 11.5 um/s and 200 urad/s (E4-like rates): the warm start is one period behind; one Newton step
   // leaves ~(motion per tick)^2 = (8e-8)^2.
   Chain chain(pipeline_yaml({}, {11.5e-6, -5e-6, 2e-6, 1e-4, -1e-4, 2e-4}, 0.0, 1));
@@ -118,7 +109,7 @@ TEST(GapPose, FollowsAMovingBodyWithOneStepPerTick) {
 }
 
 TEST(GapPose, PoseNoiseMatchesTheGeometry) {
-  if (!chain_built()) GTEST_SKIP() << "io.sim, plant.rigid_body6 or sensor.capacitive_gap is not built";
+  LODE_REQUIRE_PLUGINS("io.sim", "plant.rigid_body6", "sensor.capacitive_gap");
   // 1.2 mV at 20 mV/um is the paper's 60 nm rms per probe.
   Chain chain(pipeline_yaml({}, {}, 1.2e-3, 2));
   ASSERT_TRUE(chain.pipeline) << chain.diagnostics.format();
@@ -151,7 +142,7 @@ TEST(GapPose, PoseNoiseMatchesTheGeometry) {
 }
 
 TEST(GapPose, RefusesProbesThatCannotSeeAllSixDof) {
-  if (!plugin_built("sensor.capacitive_gap")) GTEST_SKIP() << "sensor.capacitive_gap is not built";
+  LODE_REQUIRE_PLUGINS("sensor.capacitive_gap");
   lode::testing::BlockHarness h("estimator.gap_pose", "model: gaps\n", kRateHz,
                                 "gaps:\n"
                                 "  plugin: sensor.capacitive_gap\n"
@@ -168,7 +159,7 @@ TEST(GapPose, RefusesProbesThatCannotSeeAllSixDof) {
 }
 
 TEST(GapPose, InvalidParametersAreReportedAtOnce) {
-  if (!plugin_built("sensor.capacitive_gap")) GTEST_SKIP() << "sensor.capacitive_gap is not built";
+  LODE_REQUIRE_PLUGINS("sensor.capacitive_gap");
   lode::testing::BlockHarness h("estimator.gap_pose", "model: gaps\niterations: 0\nnoise_std_v: [1, 2]\n", kRateHz,
                                 "gaps: {plugin: sensor.capacitive_gap}\n");
   h.feed("measurement", {{"z1", "V"}, {"z2", "V"}, {"z3", "V"}, {"x1", "V"}, {"x2", "V"}, {"y1", "V"}});
@@ -179,12 +170,12 @@ TEST(GapPose, InvalidParametersAreReportedAtOnce) {
 }
 
 TEST(GapPose, NoAllocationInStep) {
-  if (!plugin_built("sensor.capacitive_gap")) GTEST_SKIP() << "sensor.capacitive_gap is not built";
+  LODE_REQUIRE_PLUGINS("sensor.capacitive_gap");
   lode::testing::BlockHarness h("estimator.gap_pose", "model: gaps\n", kRateHz, "gaps: {plugin: sensor.capacitive_gap}\n");
   h.feed("measurement", {{"z1", "V"}, {"z2", "V"}, {"z3", "V"}, {"x1", "V"}, {"x2", "V"}, {"y1", "V"}});
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   ASSERT_TRUE(h.activate());
-  if (!lode::testing::allocation_counting_available()) GTEST_SKIP() << "allocation counting unavailable (sanitizer)";
+  LODE_REQUIRE_ALLOCATION_COUNTING();
   auto in = h.input("measurement");
   const std::size_t before = lode::testing::allocation_count();
   for (int k = 0; k < 10000; ++k) {

@@ -16,6 +16,7 @@
 #include <string>
 
 #include "lode/testing/allocation_counter.hpp"
+#include "lode/testing/require.hpp"
 #include "lode/testing/harness.hpp"
 
 namespace {
@@ -31,14 +32,8 @@ const lode::Elements kPose{{"x", "m"}, {"y", "m"}, {"z", "m"}, {"phi", "rad"}, {
 const lode::Elements kForce{{"fx", "N"}, {"fy", "N"}, {"fz", "N"}, {"tx", "N*m"}, {"ty", "N*m"}, {"tz", "N*m"}};
 const std::string kModels = "stage: {plugin: plant.rigid_body6}\n";
 
-bool plugin_built(const std::string& name) {
-  const char* path = std::getenv("LODE_PLUGIN_PATH");
-  if (path == nullptr) return false;
-  return std::filesystem::exists(std::filesystem::path(path) / ("lode-" + name + ".so"));
-}
 
-#define REQUIRE_PLANT()                                                                         \
-  if (!plugin_built("plant.rigid_body6")) GTEST_SKIP() << "plant.rigid_body6 is not built"
+#define REQUIRE_PLANT() LODE_REQUIRE_PLUGINS("plant.rigid_body6")
 
 // ---- the per-axis design -------------------------------------------------------------------
 
@@ -400,7 +395,7 @@ TEST(Npo, NonFiniteInputsFault) {
 
 TEST(Npo, NoAllocationInStep) {
   REQUIRE_PLANT();
-  if (!lode::testing::allocation_counting_available()) GTEST_SKIP() << "allocation counting unavailable";
+  LODE_REQUIRE_ALLOCATION_COUNTING();
   for (const std::string dynamics : {"nonlinear", "linear"}) {
     auto h = make_observer("dynamics: " + dynamics + "\nd0: 100\na0_per_s: 1e4\n");
     ASSERT_TRUE(h->configure()) << h->diagnostics();

@@ -19,6 +19,7 @@
 
 #include "../../../sensor/hall_gap/hall_polynomial.hpp"
 #include "lode/testing/allocation_counter.hpp"
+#include "lode/testing/require.hpp"
 #include "lode/testing/harness.hpp"
 #include "lode/testing/state_export.hpp"
 
@@ -37,11 +38,6 @@ std::string exact(double v) {
   return buffer;
 }
 
-bool plugin_built(const std::string& name) {
-  const char* path = std::getenv("LODE_PLUGIN_PATH");
-  const std::string folder = path ? path : LODE_BINARY_DIR "/plugins";
-  return std::filesystem::exists(folder + "/lode-" + name + ".so");
-}
 
 TEST(UkfWeights, ExactAtThePapersParameters) {
   // alpha = 0.002, beta = 2, kappa = 0, L = 3 (spec §3.3): lambda = -2.999988.
@@ -338,7 +334,6 @@ const char* const kBlock =
     "q: [5.6e-8, 1.7e-8, 7.71e-3]\nprocess_noise: per_second\nr: 1.2e-7\n"
     "initial_state: [0.0265, 0.0, 0.9]\np0: [1e-6, 1e-4, 1e-2]\n";
 
-bool models_built() { return plugin_built("plant.suspension") && plugin_built("sensor.hall_gap"); }
 
 void feed_standard(lode::testing::BlockHarness& h) {
   h.feed("measurement", {{"gap", "m"}});
@@ -346,7 +341,7 @@ void feed_standard(lode::testing::BlockHarness& h) {
 }
 
 TEST(UkfBlock, PortsDescribeAndWeights) {
-  if (!models_built()) GTEST_SKIP() << "plant.suspension / sensor.hall_gap not built";
+  LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
   lode::testing::BlockHarness h("estimator.ukf", kBlock, 2000.0, kModels);
   feed_standard(h);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
@@ -374,7 +369,7 @@ TEST(UkfBlock, PortsDescribeAndWeights) {
 }
 
 TEST(UkfBlock, TracksTheBenchmarkLikeTheCore) {
-  if (!models_built()) GTEST_SKIP() << "plant.suspension / sensor.hall_gap not built";
+  LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
   const Benchmark b = make_benchmark(3000);
   lode::testing::BlockHarness h("estimator.ukf",
                                 "process: plant\nmeasurement: hall_distance\n"
@@ -404,7 +399,7 @@ TEST(UkfBlock, TracksTheBenchmarkLikeTheCore) {
 TEST(UkfBlock, EstimatesFromHallVoltagesThroughTheNonlinearModel) {
   // The measurement model may be the Hall sensor itself (h depends on the coil voltage, a
   // process input): the filter then runs on volts, R in V^2.
-  if (!models_built()) GTEST_SKIP() << "plant.suspension / sensor.hall_gap not built";
+  LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
   const Benchmark b = make_benchmark(3000);
   lode::testing::BlockHarness h("estimator.ukf",
                                 "process: plant\nmeasurement: hall_volts\n"
@@ -439,7 +434,7 @@ TEST(UkfBlock, EstimatesFromHallVoltagesThroughTheNonlinearModel) {
 }
 
 TEST(UkfBlock, NonFiniteInputFaultsAndLeavesTheEstimate) {
-  if (!models_built()) GTEST_SKIP() << "plant.suspension / sensor.hall_gap not built";
+  LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
   lode::testing::BlockHarness h("estimator.ukf", kBlock, 2000.0, kModels);
   feed_standard(h);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
@@ -459,7 +454,7 @@ TEST(UkfBlock, NonFiniteInputFaultsAndLeavesTheEstimate) {
 }
 
 TEST(UkfBlock, ConfigurationErrorsAreReportedTogether) {
-  if (!models_built()) GTEST_SKIP() << "plant.suspension / sensor.hall_gap not built";
+  LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
   lode::testing::BlockHarness h("estimator.ukf",
                                 "process: plant\nmeasurement: hall_distance\nq: [1, 2]\nr: -1\n"
                                 "initial_state: [0.026]\np0: [1, 2, 2, 1, 0, 0, 0, 0, 1]\nalpha: 0\n"
@@ -484,7 +479,7 @@ TEST(UkfBlock, ConfigurationErrorsAreReportedTogether) {
 }
 
 TEST(UkfBlock, AlphaOutOfRangeIsRefused) {
-  if (!models_built()) GTEST_SKIP() << "plant.suspension / sensor.hall_gap not built";
+  LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
   lode::testing::BlockHarness h("estimator.ukf", std::string(kBlock) + "alpha: 0\nkappa: -5\n", 2000.0, kModels);
   feed_standard(h);
   EXPECT_FALSE(h.configure());
@@ -494,8 +489,8 @@ TEST(UkfBlock, AlphaOutOfRangeIsRefused) {
 }
 
 TEST(UkfBlock, StepDoesNotAllocate) {
-  if (!models_built()) GTEST_SKIP() << "plant.suspension / sensor.hall_gap not built";
-  if (!lode::testing::allocation_counting_available()) GTEST_SKIP() << "no allocation counting here";
+  LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
+  LODE_REQUIRE_ALLOCATION_COUNTING();
   for (const char* measurement : {"hall_distance", "hall_volts"}) {
     std::string block = kBlock;
     block.replace(block.find("hall_distance"), 13, measurement);

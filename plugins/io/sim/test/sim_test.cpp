@@ -21,6 +21,7 @@
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
 #include "lode/testing/allocation_counter.hpp"
+#include "lode/testing/require.hpp"
 #include "lode/testing/harness.hpp"
 
 
@@ -41,15 +42,8 @@ const std::string kHallSpec =
     "{name: B, x_m: -0.00635, y_m: -0.09525}]}";
 const std::string kModels = "stage: {plugin: plant.planar_stage}\nhall: " + kHallSpec + "\n";
 
-bool halbach_built() {
-  const char* path = std::getenv("LODE_PLUGIN_PATH");
-  const std::string folder = path ? path : LODE_BINARY_DIR "/plugins";
-  return std::filesystem::exists(folder + "/lode-sensor.halbach_hall.so");
-}
 
-#define REQUIRE_HALBACH()                                                              \
-  if (!halbach_built()) GTEST_SKIP() << "sensor.halbach_hall is not built: io.sim needs a " \
-                                        "measurement model plugin for this test"
+#define REQUIRE_HALBACH() LODE_REQUIRE_PLUGINS("sensor.halbach_hall")  // io.sim needs a measurement model
 
 /// A configured and activated board.
 struct Board {
@@ -596,6 +590,7 @@ TEST(IoSimPipeline, OpenLoopCycleOrder) {
 
 TEST(IoSimRealtime, CycleDoesNotAllocate) {
   REQUIRE_HALBACH();
+  LODE_REQUIRE_ALLOCATION_COUNTING();
   Board b("noise_std_v: 1e-3\nmains_amplitude_v: 1e-3\ncommand_limit: [5, 5, 0.1]\nsubsteps: 3\n");
   ASSERT_TRUE(b.ok) << b.why;
   auto command = b.h.input("command");  // name lookups allocate: done before counting
@@ -712,6 +707,7 @@ TEST(IoSimInject, ConfigurationErrorsAreLocated) {
 
 TEST(IoSimInject, InjectionDoesNotAllocate) {
   REQUIRE_HALBACH();
+  LODE_REQUIRE_ALLOCATION_COUNTING();
   Board b("noise_std_v: 1e-3\ninject_nan: {channel: B_a, start_s: 0.5, duration_s: 1.0}\n");
   ASSERT_TRUE(b.ok) << b.why;
   const char* why = "";

@@ -14,6 +14,7 @@
 #include <string>
 
 #include "lode/testing/harness.hpp"
+#include "lode/testing/require.hpp"
 
 namespace {
 
@@ -193,18 +194,13 @@ TEST(PlanarStage, ResetRestoresInitialCondition) {
 // In a pipeline only io.sim owns a plant, and io.sim needs a measurement model: these tests
 // use sensor.halbach_hall and are skipped (with the reason) when it is not built.
 
-bool plugin_built(const std::string& name) {
-  const char* path = std::getenv("LODE_PLUGIN_PATH");
-  const std::string folder = path ? path : LODE_BINARY_DIR "/plugins";
-  return std::filesystem::exists(folder + "/lode-" + name + ".so");
-}
 
 const char* const kHallModel =
     "hall: {plugin: sensor.halbach_hall, sensors: [{name: A, x_m: 0.00635, y_m: 0.09525}, "
     "{name: B, x_m: -0.00635, y_m: -0.09525}]}\n";
 
 TEST(PlanarStageYaml, ParametersReachThePhysics) {
-  if (!plugin_built("sensor.halbach_hall")) GTEST_SKIP() << "sensor.halbach_hall is not built";
+  LODE_REQUIRE_PLUGINS("sensor.halbach_hall");
   lode::testing::BlockHarness h(
       "io.sim", "plant: stage\nsensors: hall\nnoise_std_v: 0\n", 800.0,
       std::string("stage: {plugin: plant.planar_stage, mass_kg: 2.0, inertia_kg_m2: 0.1, "
@@ -232,7 +228,7 @@ TEST(PlanarStageYaml, ParametersReachThePhysics) {
 }
 
 TEST(PlanarStageYaml, NonPositiveMassAndInertiaAreLocatedErrors) {
-  if (!plugin_built("sensor.halbach_hall")) GTEST_SKIP() << "sensor.halbach_hall is not built";
+  LODE_REQUIRE_PLUGINS("sensor.halbach_hall");
   lode::testing::BlockHarness h(
       "io.sim", "plant: stage\nsensors: hall\n", 800.0,
       std::string("stage: {plugin: plant.planar_stage, mass_kg: -6.2, inertia_kg_m2: 0}\n") +
@@ -248,7 +244,7 @@ TEST(PlanarStageYaml, NonPositiveMassAndInertiaAreLocatedErrors) {
 }
 
 TEST(PlanarStageYaml, WrongInitialSizeIsRejected) {
-  if (!plugin_built("sensor.halbach_hall")) GTEST_SKIP() << "sensor.halbach_hall is not built";
+  LODE_REQUIRE_PLUGINS("sensor.halbach_hall");
   lode::testing::BlockHarness h("io.sim", "plant: stage\nsensors: hall\n", 800.0,
                                 std::string("stage: {plugin: plant.planar_stage, initial: [1, 2]}\n") +
                                     kHallModel);

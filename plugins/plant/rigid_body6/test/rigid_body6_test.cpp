@@ -14,6 +14,7 @@
 #include <string>
 
 #include "lode/testing/harness.hpp"
+#include "lode/testing/require.hpp"
 
 namespace {
 
@@ -229,16 +230,11 @@ TEST(RigidBody6, ResetRestoresTheInitialConditionAndClearsTheReadback) {
   for (std::size_t i = 6; i < 12; ++i) EXPECT_EQ(y[i], 0.0);
 }
 
-bool plugin_built(const std::string& name) {
-  const char* path = std::getenv("LODE_PLUGIN_PATH");
-  if (path == nullptr) return false;
-  return std::filesystem::exists(std::filesystem::path(path) / ("lode-" + name + ".so"));
-}
 
 // The YAML path: io.sim owns a plant in a pipeline; its truth output reads the pose and the
 // force readback, its plant_state the body velocities.
 TEST(RigidBody6Yaml, ParametersReachThePhysics) {
-  if (!plugin_built("sensor.capacitive_gap")) GTEST_SKIP() << "sensor.capacitive_gap is not built";
+  LODE_REQUIRE_PLUGINS("sensor.capacitive_gap");
   lode::testing::BlockHarness h("io.sim", "plant: stage\nsensors: gaps\nnoise_std_v: 0\nadc_bits: 0\n", 2500.0,
                                 "stage: {plugin: plant.rigid_body6, mass_kg: 2.0, inertia_kg_m2: [1e-3, 2e-3, 4e-3],"
                                 " initial: [1e-6, 0, 0, 0, 0, 0], substeps: 2}\n"
@@ -264,7 +260,7 @@ TEST(RigidBody6Yaml, ParametersReachThePhysics) {
 }
 
 TEST(RigidBody6Yaml, InvalidPhysicsIsReportedAtOnce) {
-  if (!plugin_built("sensor.capacitive_gap")) GTEST_SKIP() << "sensor.capacitive_gap is not built";
+  LODE_REQUIRE_PLUGINS("sensor.capacitive_gap");
   lode::testing::BlockHarness h("io.sim", "plant: stage\nsensors: gaps\n", 2500.0,
                                 "stage: {plugin: plant.rigid_body6, mass_kg: -1, inertia_kg_m2: [1e-3, 0, 4e-3],"
                                 " initial: [0, 0, 0, 0, 1.5707963, 0], substeps: 0}\n"

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "lode/testing/harness.hpp"
+#include "lode/testing/require.hpp"
 
 namespace {
 
@@ -22,11 +23,6 @@ using lode::plugins::SuspensionDiscretization;
 
 constexpr double kDt = 0.5e-3;  // t_s of the paper
 
-bool plugin_built(const std::string& name) {
-  const char* path = std::getenv("LODE_PLUGIN_PATH");
-  const std::string folder = path ? path : LODE_BINARY_DIR "/plugins";
-  return std::filesystem::exists(folder + "/lode-" + name + ".so");
-}
 
 // Table 3 of the paper: per-current fits of F_1e = a d^-4 + b d^-2.
 const std::vector<double> kCurrents{0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2, 1.4};
@@ -311,7 +307,7 @@ TEST(SuspensionPlant, ElementsAndReset) {
 
 // The YAML path, through io.sim (the block that owns a plant in a pipeline).
 TEST(SuspensionYaml, ForceFitTableGivesTable4) {
-  if (!plugin_built("sensor.hall_gap") || !plugin_built("io.sim")) GTEST_SKIP() << "plugins not built";
+  LODE_REQUIRE_PLUGINS("sensor.hall_gap", "io.sim");
   lode::testing::BlockHarness h(
       "io.sim", "plant: plant\nsensors: hall\n", 2000.0,
       "plant:\n  plugin: plant.suspension\n  force_fit:\n    current_a: [0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2, 1.4]\n"
@@ -331,7 +327,7 @@ TEST(SuspensionYaml, ForceFitTableGivesTable4) {
 }
 
 TEST(SuspensionYaml, InvalidValuesAreLocatedErrors) {
-  if (!plugin_built("sensor.hall_gap") || !plugin_built("io.sim")) GTEST_SKIP() << "plugins not built";
+  LODE_REQUIRE_PLUGINS("sensor.hall_gap", "io.sim");
   lode::testing::BlockHarness h(
       "io.sim", "plant: plant\nsensors: hall\n", 2000.0,
       "plant: {plugin: plant.suspension, mass_kg: -1, gap_limits_m: [0.03, 0.02], initial_gap_m: 0.06, "

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "lode/testing/harness.hpp"
+#include "lode/testing/require.hpp"
 
 namespace {
 
@@ -112,14 +113,9 @@ TEST(CapacitiveGap, AnalyticJacobianMatchesCentralDifferences) {
   }
 }
 
-bool plugin_built(const std::string& name) {
-  const char* path = std::getenv("LODE_PLUGIN_PATH");
-  if (path == nullptr) return false;
-  return std::filesystem::exists(std::filesystem::path(path) / ("lode-" + name + ".so"));
-}
 
 TEST(CapacitiveGapYaml, ProbesAndScaleReachTheModel) {
-  if (!plugin_built("plant.rigid_body6")) GTEST_SKIP() << "plant.rigid_body6 is not built";
+  LODE_REQUIRE_PLUGINS("plant.rigid_body6");
   lode::testing::BlockHarness h("io.sim", "plant: stage\nsensors: gaps\nnoise_std_v: 0\nadc_bits: 0\n", 2500.0,
                                 "stage: {plugin: plant.rigid_body6, initial: [1e-6, 0, 2e-6, 0, 0, 0]}\n"
                                 "gaps:\n"
@@ -140,7 +136,7 @@ TEST(CapacitiveGapYaml, ProbesAndScaleReachTheModel) {
 }
 
 TEST(CapacitiveGapYaml, BadProbesAreLocatedErrors) {
-  if (!plugin_built("plant.rigid_body6")) GTEST_SKIP() << "plant.rigid_body6 is not built";
+  LODE_REQUIRE_PLUGINS("plant.rigid_body6");
   lode::testing::BlockHarness h("io.sim", "plant: stage\nsensors: gaps\n", 2500.0,
                                 "stage: {plugin: plant.rigid_body6}\n"
                                 "gaps:\n"

@@ -13,17 +13,13 @@
 #include <string>
 
 #include "lode/testing/harness.hpp"
+#include "lode/testing/require.hpp"
 
 namespace {
 
 using lode::plugins::HallGap;
 namespace hall = lode::plugins::hall;
 
-bool plugin_built(const std::string& name) {
-  const char* path = std::getenv("LODE_PLUGIN_PATH");
-  const std::string folder = path ? path : LODE_BINARY_DIR "/plugins";
-  return std::filesystem::exists(folder + "/lode-" + name + ".so");
-}
 
 // Spec §1.3: C_H [V], M_H [mm], slope dM_H/dC_H [mm/V], printed to 0.01 mm / 0.1 mm/V.
 struct SpotValue {
@@ -214,7 +210,7 @@ TEST(HallGapModel, DescribeShowsTheCharacteristic) {
 const char* const kPlant = "plant: {plugin: plant.suspension, mass_kg: 6.0e-3, force_b_n_m2_per_a: 4.85e-5}\n";
 
 TEST(HallGapYaml, SimulatedBoardSamplesTheForwardModel) {
-  if (!plugin_built("plant.suspension") || !plugin_built("io.sim")) GTEST_SKIP() << "plugins not built";
+  LODE_REQUIRE_PLUGINS("plant.suspension", "io.sim");
   lode::testing::BlockHarness h("io.sim", "plant: plant\nsensors: hall\nnoise_std_v: 0\nadc_bits: 0\n", 2000.0,
                                 std::string(kPlant) + "hall: {plugin: sensor.hall_gap}\n");
   h.feed("command", {{"coil_voltage", "V"}});
@@ -230,7 +226,7 @@ TEST(HallGapYaml, SimulatedBoardSamplesTheForwardModel) {
 }
 
 TEST(HallGapYaml, ANonMonotonicRangeIsALocatedError) {
-  if (!plugin_built("plant.suspension") || !plugin_built("io.sim")) GTEST_SKIP() << "plugins not built";
+  LODE_REQUIRE_PLUGINS("plant.suspension", "io.sim");
   lode::testing::BlockHarness h(
       "io.sim", "plant: plant\nsensors: hall\n", 2000.0,
       std::string(kPlant) +
