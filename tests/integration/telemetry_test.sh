@@ -100,8 +100,21 @@ commands)
     || bad "value changed: '$before' -> '$after'"
   "$L" set "$param" 0.5 "${D[@]}" --name console >"$TMP/set.out" 2>&1; check_rc "allowed set" 0 $?
   contains "set reply has old and new value and cycle" "$TMP/set.out" "^ok: $param: .* -> 0.5 at cycle [0-9]+"
-  "$L" swap observer estimator.kalman "${D[@]}" --name console >"$TMP/swap.out" 2>&1
-  contains "swap gets a reply" "$TMP/swap.out" "^(ok|error): "
+  # A swap that must be refused (estimator.kalman needs q): an error naming the parameter, and
+  # the incumbent keeps running.
+  "$L" swap observer estimator.kalman "${D[@]}" --name console >"$TMP/swap_bad.out" 2>&1
+  check_rc "refused swap exits 1" 1 $?
+  contains "refused swap names the missing parameter" "$TMP/swap_bad.out" "^error: .*missing required parameter 'q'"
+  # A swap that must succeed: the same hybrid filter with another Kalman/H-infinity mix, d = 0.25 (eq. 25).
+  # The reply says ok, and the newcomer is live: observer.d now reads 0.25, which only the
+  # new instance can report (the incumbent's d was set to 0.5 above).
+  SWAP_PARAMS='{d: 0.25, q: [1.0e3, 1.0e3, 1.0e5, 1.0e9, 1.0e9, 1.0e9], r: 1.0e-6, hinf_theta: [8.0e5, 8.0e5, 8.0e5, 5.0e5, 5.0e5, 5.0e5], hinf_error_weight: [1, 0, 0], output: filtered}'
+  "$L" swap observer estimator.hybrid_h2hinf --params "$SWAP_PARAMS" "${D[@]}" --name console >"$TMP/swap.out" 2>&1
+  check_rc "swap over DDS exits 0" 0 $?
+  contains "swap reply is ok and names the cycle" "$TMP/swap.out" "^ok: .*swap.*cycle [0-9]+"
+  swapped_d=$("$L" set "$param" "${D[@]}" --name console 2>&1 | sed -n 's/^ok: .* = \([^ ]*\).*/\1/p')
+  [ "$swapped_d" = "0.25" ] && ok "the swapped-in instance runs (observer.d = 0.25)" \
+    || bad "after the swap observer.d reads '$swapped_d', expected 0.25 from the newcomer"
   "$L" record --remote-start "$TMP/remote.h5" "${D[@]}" --name console >"$TMP/rs.out" 2>&1; check_rc "remote record start" 0 $?
   sleep 1
   "$L" record --remote-stop "${D[@]}" --name console >"$TMP/rt.out" 2>&1; check_rc "remote record stop" 0 $?
@@ -109,6 +122,7 @@ commands)
   "$L" echo events --pipeline maglev6_hybrid --domain "$DOMAIN" --wait 5 --duration 3 >"$TMP/ev.out" 2>&1
   contains "refusal is an event" "$TMP/ev.out" "\[command_refused\].*intruder"
   contains "change is an event" "$TMP/ev.out" "\[parameter\].*$param.*-> 0.5.*console"
+  contains "the swap is an event" "$TMP/ev.out" "\[swap\].*observer.*estimator.hybrid_h2hinf"
   kill -TERM $RUN; wait $RUN; check_rc "run stopped by SIGTERM" 0 $?
   $PY -c "import json;t=json.load(open('$TMP/run.json'))['telemetry'];assert t['commands_refused']>=1,t" \
     && ok "summary counts the refusal" || bad "summary telemetry"
