@@ -16,5 +16,18 @@ LODE="$TMP/prefix/bin/lode"
 "$LODE" plugins | grep -q "estimator.glsdc" || { echo "FAIL: installed lode does not find its own plugins"; exit 1; }
 "$LODE" check "$HERE/pipeline.yaml"
 "$LODE" describe "$HERE/pipeline.yaml" | grep -q '"gain": 2' || { echo "FAIL: describe"; exit 1; }
-"$LODE" run "$HERE/pipeline.yaml" --duration 0.05 --quiet >/dev/null
+"$LODE" run "$HERE/pipeline.yaml" --duration 0.05 --quiet --record "$TMP/run.h5" >/dev/null
+# The plugin really runs in the loop with its parameter: twice.out = 2 * ref.out at every
+# cycle, and the reference steps from 0 to 2 within the run (so 0 = 2 * 0 alone proves nothing).
+PY=python3; [ -x /usr/bin/python3 ] && PY=/usr/bin/python3  # the Debian interpreter has h5py
+"$PY" - "$TMP/run.h5" <<'CHECK' || { echo "FAIL: the plugin's output is not gain * input"; exit 1; }
+import sys, h5py, numpy
+with h5py.File(sys.argv[1], "r") as f:
+    ref = f["signals/ref.out/x"][:]
+    out = f["signals/twice.out/x"][:]
+assert len(ref) == 50 and len(out) == 50, (len(ref), len(out))
+assert ref.max() == 2.0 and ref.min() == 0.0, "the reference did not step"
+assert numpy.array_equal(out, 2.0 * ref), f"max |out - 2 ref| = {numpy.abs(out - 2.0 * ref).max()}"
+print(f"external plugin: {len(out)} cycles, out = 2 * ref exactly, ref 0 -> 2")
+CHECK
 echo "external_plugin_test: passed"
