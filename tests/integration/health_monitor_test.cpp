@@ -419,6 +419,29 @@ TEST(HealthBudget, WithoutAFallbackTheRunFaultsInTheTripCycle) {
   expect_trip_event(r, 0, 3004, kBudgetReason, false);
 }
 
+TEST(HealthBudget, APromotedShadowIsNotChargedWithTheOldPrimarysSlowSteps) {
+  // kf is slow in cycles 3000..3003, one short of a trip; kf_coast is promoted at the boundary
+  // after 3003, and its first step as the primary (3004) is slow too, as a block whose data
+  // are cold in the cache is. The count belongs to the block that was slow: 1, no trip. (A
+  // count carried over from the old primary would make it 5 and trip kf in cycle 3004.)
+  const std::string yaml = coast_failing(kf_failing(kSwapConfig, kSlowFrom3000 + "    slow_cycles: 4\n"),
+                                         "    slow_from_cycle: 3004\n    slow_step_us: 200\n    slow_cycles: 1\n");
+  Rig rig(yaml);
+  ASSERT_TRUE(rig.pipeline) << rig.diagnostics.format();
+  while (rig.cycle < 3004) ASSERT_EQ(rig.step().status, lode::StepStatus::ok) << "cycle " << rig.cycle - 1;
+  // promote() waits for a cycle boundary: with no RT thread running it makes one itself.
+  rig.swapper->set_running(false);
+  const lode::SwapReport promoted = rig.swapper->promote("kf_coast");
+  ASSERT_TRUE(promoted.ok) << promoted.message;
+  rig.swapper->set_running(true);
+  while (rig.cycle < 4000) {
+    const auto r = rig.step();
+    ASSERT_EQ(r.status, lode::StepStatus::ok) << "cycle " << rig.cycle - 1 << ": " << (r.reason ? r.reason : "");
+  }
+  rig.swapper->poll_events();
+  for (const auto& e : rig.events.snapshot()) EXPECT_NE(e.kind, "health") << e.text;
+}
+
 TEST(HealthBudget, TripCyclesDoNotAllocate) {
   REQUIRE_ALLOCATION_COUNTING();
   const Outcome slow = run(without_fallback(kf_failing(kSwapConfig, kSlowFrom3000)), 4000, 2900);
