@@ -438,9 +438,12 @@ void HotSwap::after_cycle(const Tick& tick) noexcept {
   if (p.kind == Prepared::Kind::promote) {
     im.exchange_roles(f, 0, p.promote_slot + 1);
     f.fallback_used = false;  // the user chose: the fallback is armed again
+    // The health statistics were the old primary's: the promoted block starts its own (as
+    // after a fallback or a swap), or its first slow step would trip on the old one's.
     f.nis_count = 0;
     f.nis_sum = 0.0;
     f.nis_pos = 0;
+    f.over_budget = 0;
     p.cycle = boundary.cycle;
     p.time_ns = boundary.time_ns;
     p.cost_ns += monotonic_ns() - t0;

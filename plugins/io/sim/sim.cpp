@@ -122,35 +122,22 @@ Status SimBoard::configure(ConfigureContext& ctx) {
   // --- fault injection --------------------------------------------------------------------
   inject_channel_ = -1;
   if (std::optional<Params> inject = params.optional_child("inject_nan")) {
-    const std::string channel = inject->text("channel");
-    const double start_s = inject->number("start_s");
-    const double duration_s = inject->number("duration_s");
-    inject->check(std::isfinite(start_s) && start_s >= 0.0, "start_s",
-                  "must be >= 0 s (scheduled time since start), got " + number_text(start_s));
-    inject->check(std::isfinite(duration_s) && duration_s > 0.0, "duration_s",
-                  "must be > 0 s, got " + number_text(duration_s));
-    if (sensors_status) {
-      std::size_t index = 0;
-      bool found = false;
-      std::string names;
-      for (const auto& slot : sensors_) {
-        for (const auto& e : slot.model->channels()) {
-          names += (names.empty() ? "" : ", ") + e.name;
-          if (!found && e.name == channel) {
-            found = true;
-            inject_channel_ = static_cast<std::int64_t>(index);
-          }
-          if (!found) ++index;
-        }
-      }
-      if (!found) inject->fail("channel", "no channel '" + channel + "' on this board (channels: " + names + ")");
+    parse_injection_window(*inject, sensors_status.is_ok(), inject_channel_, inject_start_ns_, inject_end_ns_);
+  }
+  stuck_channel_ = -1;
+  if (std::optional<Params> stuck = params.optional_child("inject_stuck")) {
+    stuck_holds_last_ = !stuck->has("value_v");
+    const double value_v = stuck_holds_last_ ? 0.0 : stuck->number("value_v");
+    stuck->check(std::isfinite(value_v), "value_v", "must be a finite voltage, got " + number_text(value_v));
+    // Through the converter like any reading (quantized, clipped to the code range), so
+    // `signals` and `counts` agree.
+    stuck_count_ = value_v;
+    stuck_signal_v_ = value_v;
+    if (lsb_v_ > 0.0 && std::isfinite(value_v)) {
+      stuck_count_ = std::clamp(std::floor(value_v / lsb_v_ + 0.5), count_min_, count_max_);
+      stuck_signal_v_ = stuck_count_ * lsb_v_;
     }
-    if (inject->ok()) {
-      inject_start_ns_ = std::llround(start_s * 1e9);
-      inject_end_ns_ = inject_start_ns_ + std::llround(duration_s * 1e9);
-    } else {
-      inject_channel_ = -1;
-    }
+    parse_injection_window(*stuck, sensors_status.is_ok(), stuck_channel_, stuck_start_ns_, stuck_end_ns_);
   }
 
   // --- ports and buffers ------------------------------------------------------------------
@@ -180,6 +167,40 @@ Status SimBoard::configure(ConfigureContext& ctx) {
     return Status::error("plant model '" + plant_name_ + "' is not available (see above)");
   }
   return sensors_status;
+}
+
+void SimBoard::parse_injection_window(Params& window, bool sensors_ok, std::int64_t& channel,
+                                      std::int64_t& start_ns, std::int64_t& end_ns) {
+  channel = -1;
+  const std::string name = window.text("channel");
+  const double start_s = window.number("start_s");
+  const double duration_s = window.number("duration_s");
+  window.check(std::isfinite(start_s) && start_s >= 0.0, "start_s",
+               "must be >= 0 s (scheduled time since start), got " + number_text(start_s));
+  window.check(std::isfinite(duration_s) && duration_s > 0.0, "duration_s",
+               "must be > 0 s, got " + number_text(duration_s));
+  if (sensors_ok) {
+    std::size_t index = 0;
+    bool found = false;
+    std::string names;
+    for (const auto& slot : sensors_) {
+      for (const auto& e : slot.model->channels()) {
+        names += (names.empty() ? "" : ", ") + e.name;
+        if (!found && e.name == name) {
+          found = true;
+          channel = static_cast<std::int64_t>(index);
+        }
+        if (!found) ++index;
+      }
+    }
+    if (!found) window.fail("channel", "no channel '" + name + "' on this board (channels: " + names + ")");
+  }
+  if (window.ok()) {
+    start_ns = std::llround(start_s * 1e9);
+    end_ns = start_ns + std::llround(duration_s * 1e9);
+  } else {
+    channel = -1;
+  }
 }
 
 Status SimBoard::configure_sensors(ConfigureContext& ctx, Params& params) {
@@ -272,6 +293,10 @@ bool SimBoard::injected(std::size_t c, std::int64_t time_ns) const noexcept {
   return channel == inject_channel_ && time_ns >= inject_start_ns_ && time_ns < inject_end_ns_;
 }
 
+bool SimBoard::stuck(std::size_t c, std::int64_t time_ns) const noexcept {
+  return static_cast<std::int64_t>(c) == stuck_channel_ && time_ns >= stuck_start_ns_ && time_ns < stuck_end_ns_;
+}
+
 StepStatus SimBoard::sample(std::int64_t time_ns, bool in_cycle) noexcept {
   const bool with_noise = in_cycle;
   plant_->output(truth_buffer_.data());
@@ -298,6 +323,9 @@ StepStatus SimBoard::sample(std::int64_t time_ns, bool in_cycle) noexcept {
 
   std::uint64_t saturated = 0;
   for (std::size_t c = 0; c < channel_count_; ++c) {
+    // A frozen converter repeats its last conversion: the reading of the previous cycle.
+    const double previous_count = counts_[c];
+    const double previous_signal = signals_[c];
     double volts = clean_signals_[c] + channel_offset_v_[c] + mains_v;
     if (with_noise && noise_std_v_ > 0.0) volts += noise_std_v_ * gaussian();
     if (!std::isfinite(volts)) return fault("non-finite simulated signal");
@@ -319,6 +347,10 @@ StepStatus SimBoard::sample(std::int64_t time_ns, bool in_cycle) noexcept {
       signals_[c] = volts;
     }
     // After the noise draw, so the generator's sequence does not depend on the injection.
+    if (in_cycle && stuck(c, time_ns)) {
+      counts_[c] = stuck_holds_last_ ? previous_count : stuck_count_;
+      signals_[c] = stuck_holds_last_ ? previous_signal : stuck_signal_v_;
+    }
     if (in_cycle && injected(c, time_ns)) {
       counts_[c] = std::numeric_limits<double>::quiet_NaN();
       signals_[c] = std::numeric_limits<double>::quiet_NaN();
@@ -459,6 +491,20 @@ void SimBoard::describe(Json& out) const {
     out["inject_nan"] = std::move(inject);
   }
   out["inject_nan_channel"] = static_cast<double>(inject_live_channel_.load(std::memory_order_relaxed));
+  if (stuck_channel_ >= 0) {
+    Json stuck = Json::object();
+    stuck["channel_index"] = static_cast<double>(stuck_channel_);
+    stuck["start_s"] = static_cast<double>(stuck_start_ns_) * 1e-9;
+    stuck["end_s"] = static_cast<double>(stuck_end_ns_) * 1e-9;
+    stuck["window"] = "start_s <= scheduled time < end_s";
+    if (stuck_holds_last_) {
+      stuck["reads"] = "its last reading before the window (frozen converter)";
+    } else {
+      stuck["value_v"] = stuck_signal_v_;
+      stuck["count"] = stuck_count_;
+    }
+    out["inject_stuck"] = std::move(stuck);
+  }
 }
 
 namespace {
@@ -484,6 +530,11 @@ constexpr ParamDoc kParams[] = {
      "fault injection: {channel: <channel name>, start_s: <s, >= 0>, duration_s: <s, > 0>} makes that "
      "channel's signals and counts NaN on cycles whose scheduled time is in [start_s, start_s + duration_s); "
      "tunable inject_nan_channel (index, -1 = off) does it live"},
+    {"inject_stuck", "map", "none",
+     "fault injection: {channel: <channel name>, start_s: <s, >= 0>, duration_s: <s, > 0>, value_v: <V, optional>} "
+     "makes that channel read a constant on cycles whose scheduled time is in [start_s, start_s + duration_s): "
+     "value_v through the converter (a disconnected or railed sensor), or without it the reading of the "
+     "last cycle before the window (a frozen converter)"},
 };
 
 constexpr PortDoc kPorts[] = {

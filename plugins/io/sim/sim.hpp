@@ -25,6 +25,11 @@
 // channel's signals AND counts NaN on the cycles whose scheduled time t satisfies
 // start_s <= t < start_s + duration_s; the tunable inject_nan_channel (-1 = off) does the
 // same live, on every cycle, for the channel of that index (`lode set stage.inject_nan_channel 0`).
+// `inject_stuck: {channel, start_s, duration_s, value_v}` makes one channel read a constant,
+// finite value in its window: value_v through the converter (a disconnected or railed
+// sensor), or without value_v the reading of the last cycle before the window (a frozen
+// converter). A fault that stays finite gets past a NaN check; it is what the health
+// monitor's innovation test is for.
 // The noise generator advances exactly as without injection, so every other channel (and the
 // injected one once the window has passed) is bit for bit what it would have been.
 //
@@ -83,6 +88,12 @@ class SimBoard final : public Block {
   StepStatus sample(std::int64_t time_ns, bool in_cycle) noexcept;
   /// Whether channel c is NaN-injected on the cycle scheduled at time_ns.
   [[nodiscard]] bool injected(std::size_t c, std::int64_t time_ns) const noexcept;
+  /// Whether channel c is stuck on the cycle scheduled at time_ns.
+  [[nodiscard]] bool stuck(std::size_t c, std::int64_t time_ns) const noexcept;
+  /// `{channel, start_s, duration_s}` of a fault-injection map: the channel's index (-1 when
+  /// the map is invalid, which is reported) and the window [start_ns, end_ns).
+  void parse_injection_window(Params& window, bool sensors_ok, std::int64_t& channel, std::int64_t& start_ns,
+                              std::int64_t& end_ns);
   /// Standard normal deviate from the board's own generator (Box-Muller, deterministic on
   /// every standard library, unlike std::normal_distribution).
   double gaussian() noexcept;
@@ -118,6 +129,14 @@ class SimBoard final : public Block {
   std::int64_t inject_start_ns_ = 0;
   std::int64_t inject_end_ns_ = 0;  ///< exclusive
   std::atomic<std::int64_t> inject_live_channel_{-1};
+  // Stuck channel (YAML window, channel -1 = none): reads stuck_count_ / stuck_signal_v_, or
+  // with stuck_holds_last_ its previous cycle's reading.
+  std::int64_t stuck_channel_ = -1;
+  std::int64_t stuck_start_ns_ = 0;
+  std::int64_t stuck_end_ns_ = 0;  ///< exclusive
+  bool stuck_holds_last_ = true;
+  double stuck_count_ = 0.0;
+  double stuck_signal_v_ = 0.0;
 
   // Ports
   InputPort command_;

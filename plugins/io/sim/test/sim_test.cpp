@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <functional>
 #include <new>
 #include <numbers>
 #include <set>
@@ -705,10 +706,105 @@ TEST(IoSimInject, ConfigurationErrorsAreLocated) {
   EXPECT_NE(missing.why.find("start_s"), std::string::npos) << missing.why;
 }
 
+// A stuck channel: finite, so a NaN check misses it (the health monitor's innovation test).
+
+/// Runs an injected and a reference board side by side for 40 cycles at 800 Hz; `check`
+/// sees cycle k, whether it is in the [10, 15) ms window, and both boards.
+void side_by_side(const std::string& injection, const std::function<void(int, bool, Board&, Board&)>& check) {
+  const std::string chain = "noise_std_v: 1e-3\nmains_amplitude_v: 1e-3\nseed: 99\n";
+  Board injected(chain + injection);
+  Board reference(chain);
+  ASSERT_TRUE(injected.ok) << injected.why;
+  ASSERT_TRUE(reference.ok) << reference.why;
+  for (int k = 0; k < 40; ++k) {
+    for (Board* b : {&injected, &reference}) {
+      b->h.input("command")[0] = 0.3;
+      ASSERT_EQ(b->h.step(), StepStatus::ok);
+      b->h.write();
+    }
+    const std::int64_t t = injected.h.tick().time_ns;
+    check(k, t >= kWindowStartNs && t < kWindowEndNs, injected, reference);
+  }
+}
+
+TEST(IoSimInject, StuckChannelReadsItsValueThroughTheConverterInTheWindow) {
+  REQUIRE_HALBACH();
+  const double lsb = 20.0 / 65536.0;  // 16 bits over +-10 V
+  int stuck_cycles = 0;
+  side_by_side("inject_stuck: {channel: A_b, start_s: 0.01, duration_s: 0.005, value_v: 0.3}\n",
+               [&](int k, bool in_window, Board& injected, Board& reference) {
+                 for (std::size_t c = 0; c < 4; ++c) {
+                   const double signal = injected.h.output("signals")[c];
+                   const double count = injected.h.output("counts")[c];
+                   if (c == 1 && in_window) {
+                     EXPECT_EQ(count, std::floor(0.3 / lsb + 0.5)) << "cycle " << k;
+                     EXPECT_EQ(signal, count * lsb) << "cycle " << k;
+                     ++stuck_cycles;
+                   } else {
+                     // Everything else is bit for bit the board without injection (same noise draws).
+                     ASSERT_EQ(signal, reference.h.output("signals")[c]) << "cycle " << k << " channel " << c;
+                     ASSERT_EQ(count, reference.h.output("counts")[c]) << "cycle " << k << " channel " << c;
+                   }
+                 }
+                 if (k == 39) {
+                   const lode::Json d = injected.h.describe();
+                   ASSERT_NE(d.find("inject_stuck"), nullptr);
+                   EXPECT_EQ(json_number(*d.find("inject_stuck"), "channel_index"), 1.0);
+                   EXPECT_EQ(json_number(*d.find("inject_stuck"), "value_v"), std::floor(0.3 / lsb + 0.5) * lsb);
+                 }
+               });
+  EXPECT_EQ(stuck_cycles, 4);  // t = 10, 11.25, 12.5, 13.75 ms
+}
+
+TEST(IoSimInject, StuckChannelWithoutValueHoldsItsLastReadingBeforeTheWindow) {
+  REQUIRE_HALBACH();
+  double held_signal = std::nan("");
+  double held_count = std::nan("");
+  int stuck_cycles = 0;
+  side_by_side("inject_stuck: {channel: B_a, start_s: 0.01, duration_s: 0.005}\n",
+               [&](int k, bool in_window, Board& injected, Board& reference) {
+                 const double signal = injected.h.output("signals")[2];
+                 const double count = injected.h.output("counts")[2];
+                 if (in_window) {
+                   EXPECT_EQ(signal, held_signal) << "cycle " << k;
+                   EXPECT_EQ(count, held_count) << "cycle " << k;
+                   ++stuck_cycles;
+                 } else {
+                   ASSERT_EQ(signal, reference.h.output("signals")[2]) << "cycle " << k;
+                   ASSERT_EQ(count, reference.h.output("counts")[2]) << "cycle " << k;
+                   held_signal = signal;  // the frozen converter's last conversion
+                   held_count = count;
+                 }
+               });
+  EXPECT_EQ(stuck_cycles, 4);
+}
+
+TEST(IoSimInject, StuckValueOutsideTheRangeIsClippedLikeAnyReading) {
+  REQUIRE_HALBACH();
+  side_by_side("inject_stuck: {channel: A_a, start_s: 0.01, duration_s: 0.005, value_v: -25}\n",
+               [&](int k, bool in_window, Board& injected, Board&) {
+                 if (!in_window) return;
+                 EXPECT_EQ(injected.h.output("counts")[0], -32768.0) << "cycle " << k;
+                 EXPECT_EQ(injected.h.output("signals")[0], -10.0) << "cycle " << k;
+               });
+}
+
+TEST(IoSimInject, StuckConfigurationErrorsAreLocated) {
+  REQUIRE_HALBACH();
+  Board unknown("inject_stuck: {channel: C_a, start_s: 0.1, duration_s: 0.1, value_v: 0}\n");
+  EXPECT_FALSE(unknown.ok);
+  EXPECT_NE(unknown.why.find("no channel 'C_a'"), std::string::npos) << unknown.why;
+  Board missing("inject_stuck: {channel: A_a, value_v: 0}\n");
+  EXPECT_FALSE(missing.ok);
+  EXPECT_NE(missing.why.find("start_s"), std::string::npos) << missing.why;
+  EXPECT_NE(missing.why.find("duration_s"), std::string::npos) << missing.why;
+}
+
 TEST(IoSimInject, InjectionDoesNotAllocate) {
   REQUIRE_HALBACH();
   LODE_REQUIRE_ALLOCATION_COUNTING();
-  Board b("noise_std_v: 1e-3\ninject_nan: {channel: B_a, start_s: 0.5, duration_s: 1.0}\n");
+  Board b("noise_std_v: 1e-3\ninject_nan: {channel: B_a, start_s: 0.5, duration_s: 1.0}\n"
+          "inject_stuck: {channel: A_a, start_s: 1.0, duration_s: 1.0}\n");
   ASSERT_TRUE(b.ok) << b.why;
   const char* why = "";
   const long before = static_cast<long>(lode::testing::allocation_count());
