@@ -29,6 +29,30 @@ contains "summary printed" "$TMP/run.out" "position noise std"
 contains "summary json result" "$TMP/summary.json" '"result": "completed"'
 contains "summary json steps" "$TMP/summary.json" '"rise_time_s"'
 
+# The summary of the full demo is the README's table (the default duration, seed 1, the
+# simulated clock: deterministic). kawato_planar_test checks these figures against the
+# design's model; here the CLI's own summary must carry them, to the digits printed.
+"$LODE" run "$SRC/config/kawato_planar.yaml" --quiet --no-telemetry --summary-json "$TMP/demo.json" >/dev/null 2>&1
+check "run the demo" 0 $?
+PY=python3; [ -x /usr/bin/python3 ] && PY=/usr/bin/python3
+"$PY" - "$TMP/demo.json" <<'CHECK' && echo "ok: the demo's summary is the README's table" || { echo "FAIL: demo summary vs README"; fail=1; }
+import json, sys
+s = json.load(open(sys.argv[1]))
+def near(label, value, printed, half_unit):
+    assert abs(value - printed) <= half_unit, f"{label}: {value} vs README {printed}"
+truth = s["position_noise"]["truth"]
+near("hold noise x um", truth["x"]["std"] * 1e6, 0.36, 0.005)
+near("hold noise y um", truth["y"]["std"] * 1e6, 0.47, 0.005)
+glsdc = s["recorded"]["glsdc.pose"]["hold_noise"]
+near("GLSDC std x um", glsdc["x"]["std"] * 1e6, 1.64, 0.005)
+near("GLSDC std y um", glsdc["y"]["std"] * 1e6, 1.63, 0.005)
+steps = {st["axis"]: st for st in s["steps"]}
+for axis, rise_ms, overshoot, settle_ms in (("x", 24.5, 19.3, 163), ("theta_z", 15.8, 11.6, 128)):
+    near(axis + " rise ms", steps[axis]["rise_time_s"] * 1e3, rise_ms, 0.05)
+    near(axis + " overshoot %", steps[axis]["overshoot_pct"], overshoot, 0.05)
+    near(axis + " settling ms", steps[axis]["settling_time_s"] * 1e3, settle_ms, 0.5)
+CHECK
+
 # A runtime fault: an unstable controller drives the command to infinity; io.sim refuses
 # it, drives the outputs safe, and lode exits 1.
 sed '0,/- { zeros_s: .*gain: 4\.09e5, discretization: matched }/s//- { num_z: [1.0], den_z: [1.0, -3.0] }/' \
