@@ -287,9 +287,9 @@ double filter_magnitude_at(const Eigen::Vector3d& gain, double f_hz) {
 }
 
 TEST(Seed003, RankingOfR1ToR4OverFiveSeeds) {
-  // spec §6.1: p-p(LQ only) > p-p(DKF only) > p-p(notch only) > p-p(notch + DKF) on 1 s windows
-  // for every seed; the ratios to R1 are then checked against the paper's and, for R2, against
-  // what the DKF's own gains predict (below).
+  // Figs. 3-6 of the paper (R1-R4): p-p(LQ only) > p-p(DKF only) > p-p(notch only) >
+  // p-p(notch + DKF) on 1 s windows for every seed; the ratios to R1 are then checked against
+  // the paper's and, for R2, against what the DKF's own gains predict (below).
   const Chain chains[4] = {Chain::lq_only, Chain::dkf_only, Chain::notch_only, Chain::notch_dkf};
   const double paper_um[4] = {160.0, 20.0, 4.0, 1.5};
   double sum_pp[4][2] = {};

@@ -1,4 +1,4 @@
-// estimator.kalman: steady-state gains (spec §4.3), the time-varying R from the covariance
+// estimator.kalman: steady-state gains and error poles, the time-varying R from the covariance
 // input, the constant-velocity mode, ports, errors, and no allocation in step(). Tables IV and
 // V of the thesis are in kalman_tables_test.cpp.
 #include "kalman.hpp"
