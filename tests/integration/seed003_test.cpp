@@ -1,7 +1,9 @@
 // Seed 003 (Silva-Rivas & Kim 2013) in closed loop, through the real loader and scheduler:
 // config/maglev6_hybrid.yaml and its variants (LQ only / + DKF / + notch / + notch + DKF),
 // the spec §6.1 pass criteria:
-//   * R1-R4 ranking of the hold p-p over 5 noise seeds (1 s windows),
+//   * R1-R4 ranking of the hold p-p over 5 noise seeds (1 s windows), the ratios R1/Rn
+//     against the paper's within a factor of 3, and R1/R2 against the DKF's own 50 Hz
+//     attenuation,
 //   * 50 Hz line suppression (DKF alone vs LQ only; notch output),
 //   * d = 1 best with the notch (R6), the no-notch d curve reported (R5),
 //   * observer and closed loop stable for d in {0, 0.3, 0.8, 1} (spectral radii of the
@@ -242,6 +244,10 @@ double line_amplitude(const Trace& tr, const std::string& s, std::size_t axis, d
 
 double db(double ratio) { return 20.0 * std::log10(ratio); }
 
+Eigen::Vector3d json_vector3(const lode::Json& j) {
+  return Eigen::Vector3d(j.elements()[0].as_number(), j.elements()[1].as_number(), j.elements()[2].as_number());
+}
+
 // ---------------------------------------------------------------------------------------------
 
 TEST(Seed003, ShippedPipelineRunsAndFollowsItsSteps) {
@@ -265,13 +271,32 @@ TEST(Seed003, ShippedPipelineRunsAndFollowsItsSteps) {
   EXPECT_NE(blocks->find("notch")->find("derived")->find("channels"), nullptr);
 }
 
+/// |G| at f_hz of the steady filter from its measurement to its filtered position, with gain K
+/// on the constant-acceleration model: x+_k = (I - K H) Phi x+_{k-1} + K y_k, so
+/// G(z) = H (z I - (I - K H) Phi)^-1 z K.
+double filter_magnitude_at(const Eigen::Vector3d& gain, double f_hz) {
+  const double t = 1.0 / kRateHz;
+  Eigen::Matrix3d phi;
+  phi << 1, t, t * t / 2, 0, 1, t, 0, 0, 1;
+  Eigen::Matrix3d i_minus_kh = Eigen::Matrix3d::Identity();
+  i_minus_kh.col(0) -= gain;
+  const std::complex<double> z = std::polar(1.0, 2.0 * std::numbers::pi * f_hz * t);
+  const Eigen::Matrix3cd resolvent = z * Eigen::Matrix3cd::Identity() - (i_minus_kh * phi).cast<std::complex<double>>();
+  const Eigen::Vector3cd response = resolvent.inverse() * (z * gain.cast<std::complex<double>>());
+  return std::abs(response(0));
+}
+
 TEST(Seed003, RankingOfR1ToR4OverFiveSeeds) {
-  // spec §6.1: p-p(LQ only) > p-p(DKF only) > p-p(notch only) > p-p(notch + DKF) on 1 s windows
-  // for every seed; ratios to R1 in the paper: 8x, 40x, 107x (soft, within a factor ~3).
+  // Figs. 3-6 of the paper (R1-R4): p-p(LQ only) > p-p(DKF only) > p-p(notch only) >
+  // p-p(notch + DKF) on 1 s windows for every seed; the ratios to R1 are then checked against
+  // the paper's and, for R2, against what the DKF's own gains predict (below).
   const Chain chains[4] = {Chain::lq_only, Chain::dkf_only, Chain::notch_only, Chain::notch_dkf};
   const double paper_um[4] = {160.0, 20.0, 4.0, 1.5};
   double sum_pp[4][2] = {};
   double sum_truth[4][2] = {};
+  double sum_line[4][2] = {};        // 50 Hz amplitude of the signal the LQ is fed
+  double sum_truth_line[4][2] = {};  // 50 Hz amplitude of the true platen
+  lode::Json describe;
   for (std::uint64_t seed = 1; seed <= kSeeds; ++seed) {
     double pp[4][2];
     for (int c = 0; c < 4; ++c) {
@@ -279,12 +304,16 @@ TEST(Seed003, RankingOfR1ToR4OverFiveSeeds) {
       v.chain = chains[c];
       v.seed = seed;
       v.replace_steps = true;  // hold the origin
-      const Trace tr = run(v);
+      const bool want_describe = seed == 1 && chains[c] == Chain::dkf_only;
+      const Trace tr = run(v, want_describe);
       ASSERT_FALSE(tr.faulted) << chain_name(chains[c]) << ": " << tr.fault;
+      if (want_describe) describe = tr.describe;
       for (std::size_t axis = 0; axis < 2; ++axis) {
         pp[c][axis] = peak_to_peak(tr, feedback_signal(chains[c]), axis, kHoldStart, kHoldEnd);
         sum_pp[c][axis] += pp[c][axis];
         sum_truth[c][axis] += peak_to_peak(tr, "board.truth", axis, kHoldStart, kHoldEnd);
+        sum_line[c][axis] += line_amplitude(tr, feedback_signal(chains[c]), axis, 50.0, kHoldStart, kHoldEnd);
+        sum_truth_line[c][axis] += line_amplitude(tr, "board.truth", axis, 50.0, kHoldStart, kHoldEnd);
       }
     }
     for (std::size_t axis = 0; axis < 2; ++axis) {
@@ -295,13 +324,58 @@ TEST(Seed003, RankingOfR1ToR4OverFiveSeeds) {
       EXPECT_GT(pp[2][axis], pp[3][axis]) << "seed " << seed << " " << kAxes[axis];
     }
   }
-  std::printf("\nmean over %d seeds (x, y) | paper | ratio R1/Rn measured (x) vs paper | true platen p-p (x)\n", kSeeds);
+  std::printf("\nmean over %d seeds (x, y) | paper | ratio R1/Rn measured (x) vs paper | true platen p-p (x) | "
+              "2 x 50 Hz amplitude / p-p (x)\n", kSeeds);
   for (int c = 0; c < 4; ++c) {
     const double x = sum_pp[c][0] / kSeeds, y = sum_pp[c][1] / kSeeds;
     const double ratio = (sum_pp[0][0] / kSeeds) / x;
     const double paper_ratio = paper_um[0] / paper_um[c];
-    std::printf("  %-22s %8.3f %8.3f um | %6.1f um | %6.1f vs %6.1f | %.3f um\n", chain_name(chains[c]), x * 1e6,
-                y * 1e6, paper_um[c], ratio, paper_ratio, sum_truth[c][0] / kSeeds * 1e6);
+    std::printf("  %-22s %8.3f %8.3f um | %6.1f um | %6.1f vs %6.1f | %.3f um | %.3f\n", chain_name(chains[c]), x * 1e6,
+                y * 1e6, paper_um[c], ratio, paper_ratio, sum_truth[c][0] / kSeeds * 1e6,
+                2.0 * sum_line[c][0] / sum_pp[c][0]);
+  }
+
+  // The ratios R1/R2, R1/R3, R1/R4 against the paper's 8x, 40x, 107x, within a factor of 3.
+  // A soft check, and its tolerance is reasoned, not derived: the simulated noise is white plus
+  // one 50 Hz line, with its two amplitudes set so that R1 and R4 land near the paper's 160 and
+  // 1.5 um; the paper's stage had a spectrum we do not know (its 100/150 Hz harmonics, drift,
+  // the real Hall noise), and R2 and R3 weigh its parts differently (the DKF passes -14 dB of
+  // the line, the notch -42 dB of the line but -20 dB of everything above 100 Hz). A factor of
+  // 3 (+-10 dB) allows for that and still discriminates, because the chains are 8x to 107x
+  // apart: without the notch R3 would be R1 (ratio 1 against 40) and R4 would be R2 (5 against
+  // 107); without the DKF R2 would be R1 (1 against 8).
+  for (std::size_t axis = 0; axis < 2; ++axis) {
+    for (int c = 1; c < 4; ++c) {
+      const double ratio = sum_pp[0][axis] / sum_pp[c][axis];
+      const double paper_ratio = paper_um[0] / paper_um[c];
+      EXPECT_GT(ratio, paper_ratio / 3.0) << chain_name(chains[c]) << " " << kAxes[axis];
+      EXPECT_LT(ratio, paper_ratio * 3.0) << chain_name(chains[c]) << " " << kAxes[axis];
+    }
+  }
+
+  // R1/R2 derived: both holds are the 50 Hz line plus a little white noise, so their ratio is
+  // the DKF's attenuation of the line, 1/|G(50 Hz)| from its own gains (describe()). The
+  // measurement is the sensor's line L plus the platen's own 50 Hz motion T; R1 feeds it as it
+  // is, R2 through G: A_1 = |L + T_1|, A_2 = |G| |L + T_2|. Premises, asserted: the line makes
+  // at least 90 % of both p-p (p-p = 2A (1 + e), 0 <= e <= 0.11), and |T| is at most 3 % of A_1
+  // in both (A_1 / A_2 = 1/|G| within 1.03 / 0.97 = 1.062). Hence R1/R2 = 1/|G| within
+  // 1.11 x 1.062 - 1 = 18 %. (Measured: e = 0.02-0.04, |T| = 2.5 % in R1 and 0.06 % in R2.)
+  ASSERT_NE(describe.find("blocks"), nullptr);
+  const lode::Json& observer_axes = *describe.find("blocks")->find("observer")->find("derived")->find("axes");
+  for (std::size_t axis = 0; axis < 2; ++axis) {
+    const double attenuation = filter_magnitude_at(json_vector3(*observer_axes.elements()[axis].find("kalman_gain")), 50.0);
+    const double ratio = sum_pp[0][axis] / sum_pp[1][axis];
+    std::printf("%s: R1/R2 = %.3f, 1/|G_DKF(50 Hz)| = %.3f (%.1f dB), R1/R2 x |G| = %.4f; platen's 50 Hz / A_1: "
+                "R1 %.4f, R2 %.4f\n",
+                kAxes[axis], ratio, 1.0 / attenuation, db(attenuation), ratio * attenuation,
+                sum_truth_line[0][axis] / sum_line[0][axis], sum_truth_line[1][axis] / sum_line[0][axis]);
+    for (int c = 0; c < 2; ++c) {
+      EXPECT_GE(2.0 * sum_line[c][axis] / sum_pp[c][axis], 0.9) << chain_name(chains[c]) << " " << kAxes[axis];
+    }
+    for (int c = 0; c < 2; ++c) {
+      EXPECT_LE(sum_truth_line[c][axis] / sum_line[0][axis], 0.03) << chain_name(chains[c]) << " " << kAxes[axis];
+    }
+    EXPECT_NEAR(ratio * attenuation, 1.0, 0.18) << kAxes[axis];
   }
 }
 
@@ -410,10 +484,6 @@ Matrix json_matrix(const lode::Json& j) {
     for (std::size_t k = 0; k < rows[i].elements().size(); ++k)
       m(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(k)) = rows[i].elements()[k].as_number();
   return m;
-}
-
-Eigen::Vector3d json_vector3(const lode::Json& j) {
-  return Eigen::Vector3d(j.elements()[0].as_number(), j.elements()[1].as_number(), j.elements()[2].as_number());
 }
 
 /// Spectral radius of plant (exact ZOH of plant.maglev6's mode) + sensors (identity at the
