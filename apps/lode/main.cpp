@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "analysis.hpp"
+#include "run_analysis.hpp"
 #include "cli.hpp"
 #include "run_services.hpp"
 #include "lode/crash_guard.hpp"
@@ -220,152 +221,11 @@ int cmd_rtcheck(const Args&) {
 // ---------------------------------------------------------------------------------------
 // run
 
-struct Recording {
-  std::unique_ptr<lode::SignalTap> tap;
-  std::vector<double> rows;
-  int show = -1, estimate = -1, truth = -1, reference = -1;
-  std::vector<int> extra;  ///< monitor.record signals
-};
-
 std::string format_value(double v, const std::string& unit) {
   auto [scale, shown] = lode::analysis::display_scale(unit, v);
   char buf[64];
   std::snprintf(buf, sizeof buf, "%+.3f %s", v * scale, shown.c_str());
   return buf;
-}
-
-lode::analysis::Series column_series(const Recording& rec, int index) {
-  lode::analysis::Series s;
-  const auto& sig = rec.tap->signals()[static_cast<std::size_t>(index)];
-  s.elements = *sig.elements;
-  const std::size_t stride = rec.tap->stride();
-  const std::size_t col = rec.tap->column(static_cast<std::size_t>(index));
-  const std::size_t rows = rec.rows.size() / stride;
-  s.values.reserve(rows * sig.size());
-  for (std::size_t k = 0; k < rows; ++k)
-    for (std::size_t i = 0; i < sig.size(); ++i) s.values.push_back(rec.rows[k * stride + col + i]);
-  return s;
-}
-
-lode::Json stats_json(const std::vector<lode::analysis::AxisStats>& stats, const lode::Elements& e) {
-  lode::Json j = lode::Json::object();
-  for (std::size_t i = 0; i < stats.size(); ++i) {
-    lode::Json a = lode::Json::object();
-    a["unit"] = e[i].unit;
-    a["std"] = stats[i].std;
-    a["rms"] = stats[i].rms;
-    a["mean"] = stats[i].mean;
-    a["max_abs"] = stats[i].max_abs;
-    a["samples"] = static_cast<std::uint64_t>(stats[i].samples);
-    j[e[i].name] = std::move(a);
-  }
-  return j;
-}
-
-void print_stats(const char* title, const std::vector<lode::analysis::AxisStats>& stats,
-                 const lode::Elements& e, bool std_only) {
-  std::printf("  %-34s", title);
-  for (std::size_t i = 0; i < stats.size(); ++i) {
-    auto [scale, unit] =
-        lode::analysis::display_scale(e[i].unit, std_only ? stats[i].std : std::max(stats[i].rms, stats[i].max_abs));
-    if (std_only)
-      std::printf("  %s %.3f %s", e[i].name.c_str(), stats[i].std * scale, unit.c_str());
-    else
-      std::printf("  %s rms %.3f max %.3f %s", e[i].name.c_str(), stats[i].rms * scale,
-                  stats[i].max_abs * scale, unit.c_str());
-  }
-  std::printf("\n");
-}
-
-lode::Json analyse(const lode::Pipeline& p, const Recording& rec, std::string_view) {
-  using namespace lode::analysis;
-  lode::Json out = lode::Json::object();
-  const std::size_t stride = rec.tap->stride();
-  const std::size_t rows = rec.rows.size() / stride;
-  if (rows < 3) return out;
-  std::vector<double> t(rows);
-  for (std::size_t k = 0; k < rows; ++k) t[k] = rec.rows[k * stride + 1];
-  const auto& mon = p.monitor();
-  double h0 = mon.hold_start_s, h1 = mon.hold_end_s;
-  if (h1 <= h0) {
-    h0 = 0.0;
-    h1 = t.back();
-  }
-  std::printf("\nsummary (%zu samples, %.3f s)\n", rows, t.back() + 1.0 / p.rate_hz());
-  if (rec.truth >= 0) {
-    const auto truth = column_series(rec, rec.truth);
-    const auto hold_truth = window_stats(t, truth, nullptr, h0, h1);
-    lode::Json noise = lode::Json::object();
-    noise["window_s"] = std::vector<double>{h0, h1};
-    noise["truth"] = stats_json(hold_truth, truth.elements);
-    char title[96];
-    std::snprintf(title, sizeof title, "position noise std [%.2f, %.2f] s", h0, h1);
-    print_stats(title, hold_truth, truth.elements, true);
-    if (rec.estimate >= 0) {
-      const auto est = column_series(rec, rec.estimate);
-      const auto hold_est = window_stats(t, est, nullptr, h0, h1);
-      noise["estimate"] = stats_json(hold_est, est.elements);
-      print_stats("  as the estimator reports it", hold_est, est.elements, true);
-      // From the start of the hold window: the start-up transient is not an estimation error.
-      const auto err = window_stats(t, est, &truth, h0, t.back());
-      out["estimation_error"] = stats_json(err, est.elements);
-      print_stats("estimation error (estimate-truth)", err, est.elements, false);  // from h0
-    }
-    lode::Json others = lode::Json::object();
-    for (const int index : rec.extra) {
-      const auto series = column_series(rec, index);
-      const auto& name = rec.tap->signals()[static_cast<std::size_t>(index)].name();
-      lode::Json oj = lode::Json::object();
-      const auto hold = window_stats(t, series, nullptr, h0, h1);
-      oj["hold_noise"] = stats_json(hold, series.elements);
-      print_stats(("  as " + name + " reports it").c_str(), hold, series.elements, true);
-      if (series.width() == truth.width()) {
-        const auto err = window_stats(t, series, &truth, h0, t.back());
-        oj["error_vs_truth"] = stats_json(err, series.elements);
-        print_stats(("  " + name + " - truth").c_str(), err, series.elements, false);
-      }
-      others[name] = std::move(oj);
-    }
-    if (!rec.extra.empty()) out["recorded"] = std::move(others);
-    out["position_noise"] = std::move(noise);
-    if (rec.reference >= 0) {
-      const auto ref = column_series(rec, rec.reference);
-      const auto track = window_stats(t, ref, &truth, h0, t.back());
-      out["tracking_error"] = stats_json(track, truth.elements);
-      print_stats("tracking error (reference-truth)", track, truth.elements, false);
-      // A settling band narrower than the noise would make the settling time a measure of
-      // the last noise peak: widen it to 3 sigma of the hold-window noise where needed.
-      std::vector<double> noise_floor;
-      for (const auto& a : hold_truth) noise_floor.push_back(3.0 * a.std);
-      const auto steps = step_responses(t, ref, truth, mon.settle_band, noise_floor);
-      lode::Json sj = lode::Json::array();
-      for (const auto& s : steps) {
-        const auto& el = truth.elements[s.axis];
-        auto [scale, unit] = display_scale(el.unit, s.amplitude);
-        lode::Json j = lode::Json::object();
-        j["axis"] = el.name;
-        j["time_s"] = s.time_s;
-        j["amplitude"] = s.amplitude;
-        j["rise_time_s"] = s.rise_time_s;
-        j["overshoot_pct"] = s.overshoot_pct;
-        j["settling_time_s"] = s.settling_time_s;
-        j["settling_band"] = s.settling_band;
-        j["steady_state_error"] = s.steady_state_error;
-        lode::Json coupling = lode::Json::object();
-        for (std::size_t i = 0; i < s.peak_coupling.size(); ++i)
-          if (i != s.axis) coupling[truth.elements[i].name] = s.peak_coupling[i];
-        j["peak_coupling"] = std::move(coupling);
-        std::printf("  step %-8s at %.3f s of %+.1f %s: rise %.1f ms, overshoot %.1f %%, settling (+-%.2f %s) %.1f ms, "
-                    "steady-state error %+.3f %s\n",
-                    el.name.c_str(), s.time_s, s.amplitude * scale, unit.c_str(), s.rise_time_s * 1e3,
-                    s.overshoot_pct, s.settling_band * scale, unit.c_str(), s.settling_time_s * 1e3,
-                    s.steady_state_error * scale, unit.c_str());
-        sj.push(std::move(j));
-      }
-      out["steps"] = std::move(sj);
-    }
-  }
-  return out;
 }
 
 lode::Json timing_json(const lode::Pipeline& p, const lode::Scheduler& s, const lode::RunResult& r,
@@ -417,25 +277,8 @@ int cmd_run(const Args& args) {
   }
   const auto cycles = static_cast<std::uint64_t>(std::llround(duration * p->rate_hz()));
 
-  // What to record: every signal the monitor names, each once.
-  Recording rec;
-  std::vector<lode::SignalRef> tapped;
-  auto add = [&](const std::optional<lode::SignalRef>& s) -> int {
-    if (!s) return -1;
-    for (std::size_t i = 0; i < tapped.size(); ++i)
-      if (tapped[i].data == s->data) return static_cast<int>(i);
-    tapped.push_back(*s);
-    return static_cast<int>(tapped.size() - 1);
-  };
-  const auto& mon = p->monitor();
-  rec.show = add(mon.show);
-  rec.estimate = add(mon.estimate);
-  rec.truth = add(mon.truth);
-  rec.reference = add(mon.reference);
-  for (const auto& s : mon.record) rec.extra.push_back(add(s));
-  rec.tap = std::make_unique<lode::SignalTap>(tapped, 1 << 15);
-  // Up to ~1e6 cycles reserved up front; longer runs grow the buffer on the non-RT side.
-  rec.rows.reserve(std::min<std::uint64_t>(cycles, 1u << 20) * rec.tap->stride() + 16);
+  // The end-of-run summary, computed as the rows are drained (memory independent of length).
+  lode::cli::RunAnalysis analysis(*p);
 
   lode::EventLog events;
   lode::LogDrain drain(events);
@@ -445,7 +288,7 @@ int cmd_run(const Args& args) {
   if (clock_name == "sim") clock = std::make_unique<lode::SimulatedClock>();
   else clock = std::make_unique<lode::RealClock>(p->realtime().spin_us * 1000);
   lode::Scheduler sched(*p, *clock, events);
-  sched.add_tap(rec.tap.get());
+  sched.add_tap(&analysis.tap());
 
   lode::cli::RunServiceOptions service_options;
   service_options.telemetry = !args.has_flag("--no-telemetry");
@@ -492,13 +335,13 @@ int cmd_run(const Args& args) {
       std::snprintf(buf, sizeof buf, "  t %.2f s (simulated)  overruns 0", t);
     }
     line += buf;
-    if (rec.show >= 0 && rec.rows.size() >= rec.tap->stride()) {
-      const auto& sig = rec.tap->signals()[static_cast<std::size_t>(rec.show)];
-      const double* last = rec.rows.data() + rec.rows.size() - rec.tap->stride() +
-                           rec.tap->column(static_cast<std::size_t>(rec.show));
-      line += "  " + sig.name() + ":";
-      for (std::size_t i = 0; i < sig.size(); ++i)
-        line += " " + (*sig.elements)[i].name + " " + format_value(last[i], (*sig.elements)[i].unit);
+    if (const lode::SignalRef* sig = analysis.shown(); sig != nullptr) {
+      const std::vector<double> last = analysis.last_shown();
+      if (!last.empty()) {
+        line += "  " + sig->name() + ":";
+        for (std::size_t i = 0; i < sig->size(); ++i)
+          line += " " + (*sig->elements)[i].name + " " + format_value(last[i], (*sig->elements)[i].unit);
+      }
     }
     if (quiet) return;
     if (tty) std::fprintf(stderr, "\r%-150s%s", line.c_str(), final_line ? "\n" : "");
@@ -516,7 +359,7 @@ int cmd_run(const Args& args) {
       std::this_thread::sleep_until(paced_start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                                                       std::chrono::duration<double>(sim_s / *speed)));
     }
-    rec.tap->drain(rec.rows);
+    analysis.drain();
     const auto now = std::chrono::steady_clock::now();
     if (now - last_print > std::chrono::milliseconds(tty ? 200 : 1000)) {
       last_print = now;
@@ -530,7 +373,7 @@ int cmd_run(const Args& args) {
       "pipeline '" + p->name() + "' at " + std::to_string(p->rate_hz()) + " Hz, " + clock_name + " clock, " +
           std::to_string(duration) + " s",
       on_idle, [&] {
-        rec.tap->drain(rec.rows);
+        analysis.drain();
         status_line(true);
         drain.stop();
       });
@@ -548,12 +391,12 @@ int cmd_run(const Args& args) {
   summary["config"] = config;
   summary["result"] = result.faulted ? "fault" : result.stopped_by_request ? "stopped" : "completed";
   if (result.faulted) summary["fault"] = result.fault;
-  lode::Json analysis = analyse(*p, rec, clock_name);
-  for (const auto& [k, v] : analysis.members()) summary[k] = v;
+  const lode::Json figures = analysis.finish();
+  for (const auto& [k, v] : figures.members()) summary[k] = v;
   summary["timing"] = timing_json(*p, sched, result, clock_name == "sim", sim_seconds);
   summary["recording"] = lode::Json::object();
-  summary["recording"]["samples"] = static_cast<std::uint64_t>(rec.rows.size() / rec.tap->stride());
-  summary["recording"]["dropped"] = rec.tap->dropped();
+  summary["recording"]["samples"] = analysis.samples();
+  summary["recording"]["dropped"] = analysis.dropped();
   summary["rt_log_dropped"] = lode::rt_log_ring().dropped();
   const lode::Json service_summary = (*services)->summary();
   for (const auto& [k, v] : service_summary.members()) summary[k] = v;
@@ -597,9 +440,9 @@ int cmd_run(const Args& args) {
                 h->find("rt_cost_p50_ns") ? h->find("rt_cost_p50_ns")->as_number() : 0.0,
                 h->find("rt_cost_max_ns") ? h->find("rt_cost_max_ns")->as_number() : 0.0,
                 static_cast<unsigned long long>(h->find("overruns_at_swap_cycles")->as_number()));
-  if (rec.tap->dropped() > 0)
+  if (analysis.dropped() > 0)
     std::printf("  WARNING: %llu recorded samples dropped (consumer too slow)\n",
-                static_cast<unsigned long long>(rec.tap->dropped()));
+                static_cast<unsigned long long>(analysis.dropped()));
   if (result.faulted) std::printf("  FAULT: %s (outputs driven safe)\n", result.fault.c_str());
 
   if (args.options.count("--summary-json")) {

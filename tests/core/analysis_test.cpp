@@ -47,3 +47,42 @@ TEST(Analysis, WindowStatsOfDifference) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(AnalysisStreaming, KeepsAtMostMaxStepsAndCountsTheRest) {
+  // A square wave of 2000 steps: a day-long run with a stepping reference must not keep
+  // every response.
+  lode::analysis::StepResponseTracker tracker(1, 1, 0.02, 1000);
+  const double dt = 1e-3;
+  for (int k = 0; k < 200000; ++k) {
+    const double r = (k / 100) % 2 == 0 ? 0.0 : 1.0;
+    tracker.add(k * dt, &r, &r);
+  }
+  const auto steps = tracker.finish();
+  EXPECT_EQ(steps.size(), 1000u);
+  EXPECT_EQ(tracker.omitted(), 999u);  // 1999 steps in all (the first edge is at k = 100)
+  EXPECT_NEAR(steps.front().time_s, 0.1, 1e-12);
+  EXPECT_NEAR(steps.back().time_s, 100.0, 1e-9);
+}
+
+TEST(AnalysisStreaming, SteadyStateErrorUsesAtMostTheTailCapacity) {
+  // One step, then a response that ramps away for 400 000 samples: the last 10 % is 40 000
+  // samples, more than the tail kept; the mean is over the last kTailCapacity samples.
+  lode::analysis::StepResponseTracker tracker(1, 1, 0.02);
+  const std::size_t n = 400000, cap = lode::analysis::StepResponseTracker::kTailCapacity;
+  double last = 0.0;
+  for (std::size_t k = 0; k < n; ++k) {
+    const double r = k >= 10 ? 1.0 : 0.0;
+    const double y = k >= 10 ? 1.0 + 1e-6 * static_cast<double>(k) : 0.0;
+    tracker.add(static_cast<double>(k), &r, &y);
+    last = static_cast<double>(k);
+  }
+  const auto steps = tracker.finish();
+  ASSERT_EQ(steps.size(), 1u);
+  // Mean of 1e-6 k over the last `cap` samples.
+  const double expected = 1e-6 * (last - 0.5 * static_cast<double>(cap - 1));
+  EXPECT_NEAR(steps[0].steady_state_error, expected, 1e-12);
+}
+
+}  // namespace
