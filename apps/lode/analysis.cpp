@@ -52,12 +52,17 @@ StepResponseTracker::StepResponseTracker(std::size_t reference_width, std::size_
     : ref_width_(reference_width), y_width_(response_width), settle_band_(settle_band), max_steps_(max_steps) {}
 
 void StepResponseTracker::add(double t, const double* reference, const double* response) {
-  Sample next{t, std::vector<double>(reference, reference + ref_width_),
-              std::vector<double>(response, response + y_width_)};
+  // recent_ is a ring of three samples, reused: a day-long run feeds 69 million of them.
+  if (recent_.size() < 3) recent_.resize(3, Sample{0.0, std::vector<double>(ref_width_), std::vector<double>(y_width_)});
+  const std::size_t slot = count_ == 0 ? 0 : (pending_ + 1) % 3;
+  Sample& next = recent_[slot];
+  next.t = t;
+  std::copy(reference, reference + ref_width_, next.ref.begin());
+  std::copy(response, response + y_width_, next.y.begin());
   // A step at sample k needs k - 1 (the jump) and k + 1 (it holds): decide k now.
-  if (recent_.size() == 2) {
-    const Sample& before = recent_[0];
-    const Sample& at = recent_[1];
+  if (count_ >= 2) {
+    const Sample& before = recent_[(pending_ + 2) % 3];
+    const Sample& at = recent_[pending_];
     bool step = false;
     for (std::size_t i = 0; i < ref_width_ && !step; ++i)
       step = at.ref[i] - before.ref[i] != 0.0 && next.ref[i] == at.ref[i];
@@ -66,9 +71,9 @@ void StepResponseTracker::add(double t, const double* reference, const double* r
       open_steps(before, at, next);
     }
     feed(at);
-    recent_.erase(recent_.begin());
   }
-  recent_.push_back(std::move(next));
+  pending_ = slot;
+  ++count_;
 }
 
 void StepResponseTracker::open_steps(const Sample& before, const Sample& at, const Sample& next) {
@@ -150,10 +155,11 @@ void StepResponseTracker::close_window() {
 }
 
 std::vector<StepResponse> StepResponseTracker::finish() {
-  // recent_ holds the last sample fed and the one still pending (the last sample can start no
-  // step: nothing after it holds).
-  if (!recent_.empty()) feed(recent_.back());
-  recent_.clear();
+  // The pending sample (the last) can start no step: nothing after it holds. The first sample
+  // is never fed: no step can be open before the second.
+  if (count_ >= 2) feed(recent_[pending_]);
+  count_ = 0;
+  pending_ = 0;
   close_window();
   return std::move(done_);
 }

@@ -114,7 +114,9 @@ class StepResponseTracker {
   double settle_band_;
   std::size_t max_steps_;
   std::vector<double> noise_floor_;
-  std::vector<Sample> recent_;  ///< the last two samples (a step is confirmed one late)
+  std::vector<Sample> recent_;  ///< ring of 3: the sample before, the pending one, the newest
+  std::size_t pending_ = 0;     ///< index in recent_ of the sample not yet fed
+  std::size_t count_ = 0;       ///< samples added
   std::vector<Active> active_;
   std::vector<StepResponse> done_;
   std::size_t omitted_ = 0;
