@@ -178,7 +178,7 @@ ControlReply ControlService::exchange(const ControlRequest& r, const Entry& e, s
                  reply.message + (r.client.empty() ? "" : " (by " + r.client + ")"));
   } else {
     reply.message = what + ": refused by the block: " + std::string(why) + "; unchanged at " + format_number(now);
-    events_.post(time_ns, cycle, "command_failed", reply.message + (r.client.empty() ? "" : " (by " + r.client + ")"));
+    events_.post_limited(time_ns, cycle, "command_failed", reply.message + (r.client.empty() ? "" : " (by " + r.client + ")"));
   }
   return reply;
 }
@@ -243,7 +243,7 @@ ControlReply ControlService::handle(const ControlRequest& r, std::chrono::millis
   std::string error;
   if (!parse_value(r.value, e->tunables[index], value, error)) {
     auto reply = fail(r, "set " + r.block + "." + r.name + ": " + error + "; unchanged");
-    events_.post(0, 0, "command_failed", reply.message + (r.client.empty() ? "" : " (by " + r.client + ")"));
+    events_.post_limited(0, 0, "command_failed", reply.message + (r.client.empty() ? "" : " (by " + r.client + ")"));
     return reply;
   }
   return exchange(r, *e, index, true, value, timeout);

@@ -511,7 +511,7 @@ SwapReport HotSwap::finish(PreparedPtr prepared) {
     report.ok = false;
     report.message = "swap " + report.block + ": not done: " + p.refusal + "; " + report.old_plugin + " keeps running";
     if (p.record && p.record->block) p.record->block->deactivate();
-    events_.post(p.time_ns, p.cycle, "command_failed", report.message);
+    events_.post_limited(p.time_ns, p.cycle, "command_failed", report.message);
     return report;
   }
   if (p.kind == Prepared::Kind::promote) {
@@ -647,7 +647,7 @@ SwapReport HotSwap::swap(const SwapRequest& request, std::chrono::milliseconds t
     r.block = request.block;
     r.ok = false;
     r.message = prepared.error() + "; the running block is unchanged";
-    events_.post(0, 0, "command_failed", r.message + (request.client.empty() ? "" : " (by " + request.client + ")"));
+    events_.post_limited(0, 0, "command_failed", r.message + (request.client.empty() ? "" : " (by " + request.client + ")"));
     return r;
   }
   return wait_and_finish(std::move(*prepared), timeout);
@@ -663,7 +663,7 @@ SwapReport HotSwap::promote(const std::string& shadow, std::chrono::milliseconds
     std::vector<std::string> names;
     for (const auto& s : pipeline_.shadows()) names.push_back(s.name);
     r.message = "promote: '" + shadow + "' is not a shadow" + (names.empty() ? " (this pipeline has none)" : " (shadows: " + join(names) + ")");
-    events_.post(0, 0, "command_failed", r.message);
+    events_.post_limited(0, 0, "command_failed", r.message);
     return r;
   }
   auto p = PreparedPtr(new Prepared());
