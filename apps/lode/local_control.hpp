@@ -1,18 +1,13 @@
 // Local command channel for a running `lode run`: the same ControlService commands as the
 // DDS bridge (set, get, list, swap, promote, record_start, record_stop, status), over a
-// Unix-domain stream socket, so `lode set` / `lode swap` work on the RT host without Fast DDS
-// (issue 5: "a local `lode swap` must work without it too").
+// Unix-domain stream socket, so `lode set` / `lode swap` work on the RT host without Fast DDS.
 //
-// Where: $XDG_RUNTIME_DIR/lode/<pipeline>.sock, or /tmp/lode-<uid>/<pipeline>.sock when
-// XDG_RUNTIME_DIR is unset. The directory is 0700 and owned by the user, the socket 0600:
-// the file system is the authentication (only the user who started the run, and root, can
+// Where: $XDG_RUNTIME_DIR/lode/<pipeline>.sock; without XDG_RUNTIME_DIR, /run/user/<uid>/lode
+// when that directory is the user's, else /tmp/lode-<uid>. The directory is 0700 and owned by
+// the user, the socket 0600: the file system is the authentication (only the user who started the run, and root, can
 // connect). Every request is logged with the peer's pid and uid (SO_PEERCRED).
 //
-// Wire format: one request per line, a flat JSON object
-//   {"id": 7, "kind": "set", "block": "observer", "name": "d", "value": "0.2", "plugin": ""}
-// (value may also be a JSON number or bool; every key but kind is optional; unknown keys,
-// duplicates, nesting and trailing text are refused), one reply line per request:
-//   {"id": 7, "ok": true, "message": "observer.d: 1 -> 0.2 at cycle 812", "value": "0.2"}
+// Wire format (local_wire.hpp): one flat JSON object per line each way.
 // A malformed line gets an ok=false reply that says what is wrong and where; the connection
 // stays open. Requests are served one at a time, in arrival order, whatever the client.
 //
@@ -32,6 +27,7 @@
 #include <thread>
 #include <vector>
 
+#include "local_wire.hpp"
 #include "lode/control.hpp"
 #include "lode/status.hpp"
 
@@ -54,21 +50,15 @@ std::optional<pid_t> probe_local_socket(const std::string& path);
 /// Every pipeline with a live socket in local_control_dir(), by name.
 std::vector<LocalPipeline> live_local_pipelines();
 
-// --- wire format -------------------------------------------------------------------------
-/// One line, no trailing newline.
-std::string encode_request(const ControlRequest& r);
-std::string encode_reply(const ControlReply& r);
-/// Strict: a flat object with the keys above. On error the message says what and at which
-/// column (1-based); `id_seen` gets the id if it was read before the error.
-Expected<ControlRequest> decode_request(const std::string& line, std::uint64_t* id_seen = nullptr);
-Expected<ControlReply> decode_reply(const std::string& line);
-
 // --- server ------------------------------------------------------------------------------
 struct LocalControlOptions {
   std::string dir;  ///< "" = local_control_dir()
   std::chrono::milliseconds handle_timeout{2000};  ///< ControlService::handle's RT-boundary wait
   std::size_t max_clients = 16;
   std::size_t max_line = 64 * 1024;  ///< a longer request line is refused and the client dropped
+  /// A client that sends nothing for this long is told so and disconnected: idle
+  /// connections must not hold the max_clients slots and lock every command out.
+  std::chrono::milliseconds idle_timeout{10000};
 };
 
 struct LocalControlStats {
@@ -76,6 +66,7 @@ struct LocalControlStats {
   std::uint64_t requests = 0;
   std::uint64_t malformed = 0;  ///< lines refused before reaching the ControlService
   std::uint64_t refused_clients = 0;  ///< over max_clients or line too long
+  std::uint64_t idle_closed = 0;      ///< disconnected after idle_timeout without a request
 };
 
 class LocalControlServer {
@@ -114,7 +105,7 @@ class LocalControlServer {
   dev_t dev_ = 0;     ///< identity of our socket file: never unlink another run's
   ino_t ino_ = 0;
   std::thread thread_;
-  std::atomic<std::uint64_t> connections_{0}, requests_{0}, malformed_{0}, refused_{0};
+  std::atomic<std::uint64_t> connections_{0}, requests_{0}, malformed_{0}, refused_{0}, idle_closed_{0};
 };
 
 // --- client ------------------------------------------------------------------------------

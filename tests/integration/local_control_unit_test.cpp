@@ -437,6 +437,37 @@ TEST_F(LocalControlServerTest, OverlongLineAndTooManyClientsAreRefused) {
   EXPECT_EQ(server_->stats().refused_clients, 2u);
 }
 
+TEST_F(LocalControlServerTest, IdleClientsAreDroppedAndABusyServerSaysSo) {
+  // Idle connections used to hold every slot for ever, and `lode set` then failed with
+  // "Broken pipe". Now a client at the limit is told "busy", and idle ones are dropped.
+  options_.max_clients = 2;
+  options_.idle_timeout = milliseconds(300);
+  start();
+  const int a = connect_raw(), b = connect_raw();  // connected, silent
+  ControlRequest r;
+  r.kind = "status";
+  std::this_thread::sleep_for(milliseconds(50));  // both accepted
+  // The refusal arrives as the reply (the request was already sent) or, when the server had
+  // closed first, as the error of the send: either way it says "busy".
+  auto busy = local_send(path(), r, milliseconds(200));
+  ASSERT_FALSE(busy && busy->ok) << "a third client was served past max_clients = 2";
+  const std::string refusal = busy ? busy->message : busy.error();
+  EXPECT_NE(refusal.find("busy: too many local clients (2 connected)"), std::string::npos) << refusal;
+  EXPECT_EQ(refusal.find("Broken pipe"), std::string::npos) << refusal;
+  // Past the idle timeout both idle clients are told why and disconnected...
+  for (int fd : {a, b}) {
+    auto said = decode_reply(read_line(fd));
+    ASSERT_TRUE(said) << said.error();
+    EXPECT_NE(said->message.find("idle for 300 ms"), std::string::npos) << said->message;
+    char ch;
+    EXPECT_EQ(::recv(fd, &ch, 1, 0), 0);
+    ::close(fd);
+  }
+  // ...and a command gets through again.
+  EXPECT_TRUE(send(r).ok);
+  EXPECT_EQ(server_->stats().idle_closed, 2u);
+}
+
 TEST(LocalControlClient, TimesOutWhenNobodyAnswers) {
   char tmpl[] = "/tmp/lode-lc-mute-XXXXXX";
   ASSERT_NE(::mkdtemp(tmpl), nullptr);
