@@ -489,7 +489,18 @@ std::optional<std::string> target_pipeline(const Args& args, dds::Client& client
     target = target.substr(slash + 1);
     return p;
   }
-  const auto pipelines = client.pipelines(wait_option(args, 3.0));
+  // Discovery is gradual: the first pipeline heard of is not the only one live until no other
+  // has appeared for a while. Take the set once it has held still for a second, so that a
+  // command never goes to the one that happened to answer first.
+  auto pipelines = client.pipelines(wait_option(args, 3.0));
+  for (auto settled = Clock::now(); !pipelines.empty() && Clock::now() - settled < std::chrono::seconds(1);) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    auto now_live = client.pipelines(std::chrono::milliseconds(0));
+    if (now_live != pipelines) {
+      pipelines = std::move(now_live);
+      settled = Clock::now();
+    }
+  }
   if (pipelines.size() == 1) return pipelines[0];
   if (pipelines.empty())
     std::fprintf(stderr, "lode: no pipeline is publishing on this domain (give --pipeline NAME, check --domain/--transport)\n");
@@ -570,7 +581,7 @@ int dispatch(const Args& args, const std::string& role, std::string target,
         std::fprintf(stderr, "lode: several pipelines run on this host; give --pipeline NAME (or NAME/...), or --dds for a remote one:");
         for (const auto& p : live) std::fprintf(stderr, " %s (pid %d)", p.pipeline.c_str(), static_cast<int>(p.pid));
         std::fprintf(stderr, "\n");
-        return kExitFault;
+        return kExitConfig;  // refuse to guess
       } else if (force_local) {
         std::fprintf(stderr, "lode: no pipeline runs on this host with a local command socket (looked in %s)\n",
                      local_control_dir().c_str());
@@ -600,7 +611,8 @@ int dispatch(const Args& args, const std::string& role, std::string target,
   auto client = make_client(args, role);
   if (!client) return kExitConfig;
   if (!pipeline) pipeline = target_pipeline(args, *client, target);
-  if (!pipeline) return kExitFault;
+  // None live, or several and none named: a command must never go to a guessed pipeline.
+  if (!pipeline) return kExitConfig;
   return send(args, *client, *pipeline, *request);
 }
 

@@ -355,13 +355,14 @@ Status Bridge::open(const ParticipantOptions& options) {
     // Transient-local replies: a client whose reply reader matches a moment after its
     // command was answered still gets the answer (it filters by client name and id).
     reply_writer_ = make_writer(pipeline_topic(pipeline_.name(), "reply"), detail::type_name_reply(),
-                                detail::writer_qos(Durability::transient_local, detail::kCommandDepth),
+                                detail::writer_qos(Durability::transient_local, detail::kReplyDepth),
                                 status);
     const std::string command_topic = pipeline_topic(pipeline_.name(), "command");
     fdds::Topic* topic =
         participant_->create_topic(command_topic, detail::type_name_command(), fdds::TOPIC_QOS_DEFAULT);
     command_reader_ = topic ? subscriber_->create_datareader(
-                                  topic, detail::reader_qos(Durability::volatile_, detail::kCommandDepth),
+                                  topic,
+                                  detail::keep_all_commands(detail::reader_qos(Durability::volatile_, 1), 0.0),
                                   &wakeup_, fdds::StatusMask::data_available())
                             : nullptr;
     if (command_reader_ == nullptr && status) {
@@ -590,8 +591,8 @@ void Bridge::handle_command(const lode::msg::Command& command, const fdds::Sampl
                                 "') was not discovered as a participant, so telemetry.commands.allow_* "
                                 "cannot be checked";
     commands_refused_.fetch_add(1, std::memory_order_relaxed);
-    events_.post(run_stats_.last_time_ns.load(std::memory_order_relaxed),
-                 run_stats_.cycles.load(std::memory_order_relaxed), "command_refused",
+    events_.post_limited(run_stats_.last_time_ns.load(std::memory_order_relaxed),
+                         run_stats_.cycles.load(std::memory_order_relaxed), "command_refused",
                  command.kind() + " " + command.block() + (command.name().empty() ? "" : "." + command.name()) +
                      ": " + reply.message);
     write_reply(command, reply);

@@ -231,8 +231,22 @@ class ClientImpl final : public Client {
   }
 
   std::vector<std::string> pipelines(std::chrono::milliseconds wait) override {
+    // Each running pipeline has one SignalInfo writer. Once something is heard, wait (within
+    // `wait`) until every matched writer has delivered its pipeline's description: the first
+    // pipeline heard of is not the only one live just because its data came first.
+    const auto deadline = Clock::now() + wait;
     std::set<std::string> names;
     for (const auto& meta : signals(wait)) names.insert(meta.pipeline);
+    while (!names.empty() && Clock::now() < deadline) {
+      fdds::SubscriptionMatchedStatus matched;
+      if (info_reader_->get_subscription_matched_status(matched) != ReturnCode_t::RETCODE_OK ||
+          static_cast<std::size_t>(matched.current_count) <= names.size())
+        break;
+      std::unique_lock lock(signals_mutex_);
+      signals_changed_.wait_for(lock, std::chrono::milliseconds(50));
+      names.clear();
+      for (const auto& [topic, meta] : signals_) names.insert(meta.pipeline);
+    }
     return {names.begin(), names.end()};
   }
 
@@ -496,10 +510,10 @@ class ClientImpl final : public Client {
       }
     });
     channel.reader = subscriber_->create_datareader(
-        reply_topic, detail::reader_qos(Durability::transient_local, detail::kCommandDepth),
+        reply_topic, detail::reader_qos(Durability::transient_local, detail::kReplyDepth),
         channel.listener.get(), fdds::StatusMask::data_available());
     channel.writer = publisher_->create_datawriter(
-        command_topic, detail::writer_qos(Durability::volatile_, detail::kCommandDepth));
+        command_topic, detail::keep_all_commands(detail::writer_qos(Durability::volatile_, 1), 2.0));
     if (channel.reader == nullptr || channel.writer == nullptr) {
       return Status::error("dds client: could not create the command writer / reply reader of '" +
                            pipeline + "'");

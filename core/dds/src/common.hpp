@@ -109,6 +109,25 @@ inline std::int32_t one_second(double rate_hz, std::int32_t minimum) {
 inline constexpr std::int32_t kSignalInfoInstances = 4096;  ///< topics across all pipelines
 inline constexpr std::int32_t kEventsDepth = 100;
 inline constexpr std::int32_t kTimingDepth = 16;
-inline constexpr std::int32_t kCommandDepth = 32;
+/// Replies kept for readers that match late (transient local): every new client receives
+/// them once, so enough for a burst in flight, not a history.
+inline constexpr std::int32_t kReplyDepth = 256;
+/// Commands in flight that the pipeline's reader holds before it pushes back on the writers.
+inline constexpr std::int32_t kCommandQueue = 1024;
+
+/// Commands are never overwritten: the reader keeps all of them (up to kCommandQueue, then
+/// the reliable protocol holds the rest at the writer), and the writer keeps all it has not
+/// had acknowledged, blocking write() for up to `blocking_s` when the reader is full, so a
+/// burst is either delivered whole or refused to the sender, never thinned out in silence.
+template <typename Qos>
+Qos keep_all_commands(Qos qos, double blocking_s) {
+  qos.history().kind = fdds::KEEP_ALL_HISTORY_QOS;
+  qos.resource_limits().max_instances = 1;
+  qos.resource_limits().max_samples_per_instance = kCommandQueue;
+  qos.resource_limits().max_samples = kCommandQueue;
+  qos.resource_limits().allocated_samples = 64;
+  qos.reliability().max_blocking_time = eprosima::fastrtps::Duration_t(blocking_s);
+  return qos;
+}
 
 }  // namespace lode::dds::detail
