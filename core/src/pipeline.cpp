@@ -1,4 +1,5 @@
 #include "lode/clock.hpp"
+#include "lode/config_file.hpp"
 #include "lode/pipeline.hpp"
 
 #include <arpa/inet.h>
@@ -21,15 +22,34 @@
 #include "params_node.hpp"
 #include "pipeline_impl.hpp"
 #include "port_binder.hpp"
+#include "yaml_document.hpp"
 
 namespace lode {
 
 using namespace pipeline_detail;
 
+std::string pipeline_name_problem(const std::string& name) {
+  constexpr std::size_t kMaxLength = 64;
+  if (name.empty()) return "the pipeline name is empty";
+  if (name.size() > kMaxLength)
+    return "the pipeline name is " + std::to_string(name.size()) + " characters long; at most " +
+           std::to_string(kMaxLength) + " are allowed";
+  if (name.front() == '.' || name.front() == '-')
+    return "the pipeline name '" + name + "' starts with '" + name.front() + "'";
+  for (const char c : name) {
+    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
+                    c == '-' || c == '.';
+    if (!ok)
+      return "the pipeline name '" + name + "' may hold only letters, digits, '_', '-' and '.'";
+  }
+  return {};
+}
+
+
 namespace {
 
-constexpr const char* kTopLevelKeys[] = {"pipeline", "rate_hz", "duration_s", "realtime", "models",
-                                         "blocks",   "monitor", "telemetry",  "health"};
+constexpr const char* kTopLevelKeys[] = {"pipeline", "rate_hz",   "duration_s", "realtime", "models", "blocks",
+                                         "monitor",  "telemetry", "health",     "record",   "envelope"};
 /// Keys of a block that the pipeline reads (the rest are the plugin's parameters).
 const std::vector<std::string> kPipelineBlockKeys = {"plugin", "inputs", "shadow_of", "shadow_decimation"};
 /// Outputs the pipeline adds to every shadow role.
@@ -76,24 +96,6 @@ Json to_json(const YAML::Node& n) {
     return Json(s);
   }
   return Json();
-}
-
-/// yaml-cpp 0.7 silently keeps the last of duplicate keys: find them ourselves.
-void check_duplicate_keys(const YAML::Node& n, const std::string& path, const std::string& file,
-                          Diagnostics& diag) {
-  if (n.IsMap()) {
-    std::set<std::string> seen;
-    for (const auto& kv : n) {
-      const auto key = kv.first.as<std::string>();
-      if (!seen.insert(key).second)
-        diag.add(detail::location_of(kv.first, file), path.empty() ? key : path + "." + key,
-                 "duplicate key '" + key + "' (the earlier value would be silently ignored)");
-      check_duplicate_keys(kv.second, path.empty() ? key : path + "." + key, file, diag);
-    }
-  } else if (n.IsSequence()) {
-    for (std::size_t i = 0; i < n.size(); ++i)
-      check_duplicate_keys(n[i], path + "[" + std::to_string(i) + "]", file, diag);
-  }
 }
 
 }  // namespace
@@ -233,10 +235,13 @@ bool Pipeline::Impl::parse_top(const YAML::Node& root) {
     if (!allowed.count(key))
       error(detail::location_of(kv.first, file), key,
             "unknown top-level key '" + key +
-                "' (allowed: pipeline, rate_hz, duration_s, realtime, models, blocks, monitor, telemetry, health)");
+                "' (allowed: pipeline, rate_hz, duration_s, realtime, models, blocks, monitor, telemetry, health, record, "
+                "envelope)");
   }
   if (!root["pipeline"] || !root["pipeline"].IsScalar())
     error(detail::location_of(root, file), "pipeline", "missing pipeline name (pipeline: <name>)");
+  else if (const std::string why = pipeline_name_problem(root["pipeline"].Scalar()); !why.empty())
+    error(detail::location_of(root["pipeline"], file), "pipeline", why);
   else
     name = root["pipeline"].Scalar();
 
@@ -258,10 +263,19 @@ bool Pipeline::Impl::parse_top(const YAML::Node& root) {
   if (const auto d = root["duration_s"]) {
     double v = -1;
     try { v = d.as<double>(); } catch (const YAML::Exception&) {}
-    if (!(v > 0)) error(detail::location_of(d, file), "duration_s", "duration_s must be a positive number");
-    else duration_s = v;
+    if (!(v > 0) || !std::isfinite(v))
+      error(detail::location_of(d, file), "duration_s", "duration_s must be a positive number");
+    else
+      duration_s = v;
   }
+  // 0 cycles means "until stopped" to the scheduler: a duration shorter than one cycle must be
+  // refused, not rounded to it.
+  if (duration_s && rate_hz > 0 && std::llround(*duration_s * rate_hz) < 1)
+    error(detail::location_of(root["duration_s"], file), "duration_s",
+          "duration_s " + root["duration_s"].Scalar() + " is shorter than one cycle at rate_hz " +
+              root["rate_hz"].Scalar());
   if (root["realtime"]) parse_realtime(root["realtime"]);
+  if (root["record"]) parse_record(root["record"]);
   if (root["models"]) parse_models(root["models"]);
   const YAML::Node blocks_node = root["blocks"];
   if (!blocks_node || !blocks_node.IsMap() || blocks_node.size() == 0) {
@@ -273,17 +287,33 @@ bool Pipeline::Impl::parse_top(const YAML::Node& root) {
   return true;
 }
 
+void Pipeline::Impl::parse_record(const YAML::Node& node) {
+  if (!node.IsMap()) {
+    error(detail::location_of(node, file), "record", "expected a map");
+    return;
+  }
+  Params p = detail::make_params(node, "record", file, diag);
+  record_settings.flush_interval_s = p.number("flush_interval_s", 1.0);
+  p.check(record_settings.flush_interval_s >= 0.05 && record_settings.flush_interval_s <= 60.0, "flush_interval_s",
+          "must be 0.05..60 s (how much of the run a crash may lose)");
+  record_settings.stop_on_error = p.choice("on_error", {"continue", "stop"}, "continue") == "stop";
+  detail::report_unread_keys(p);
+}
+
 void Pipeline::Impl::parse_realtime(const YAML::Node& rt) {
   if (!rt.IsMap()) {
     error(detail::location_of(rt, file), "realtime", "expected a map");
     return;
   }
   Params p = detail::make_params(rt, "realtime", file, diag);
-  realtime.priority = static_cast<int>(p.integer("priority", 0));
-  p.check(realtime.priority >= 0 && realtime.priority <= 99, "priority",
-          "SCHED_FIFO priority must be 0 (none) or 1..99, got " + std::to_string(realtime.priority));
-  realtime.cpu = static_cast<int>(p.integer("cpu", -1));
-  p.check(realtime.cpu >= -1 && realtime.cpu < 1024, "cpu", "cpu must be -1 (any) or a CPU index");
+  // Range-checked as read, before narrowing to int: 4294967376 must not become 80.
+  const std::int64_t priority = p.integer("priority", 0);
+  p.check(priority >= 0 && priority <= 99, "priority",
+          "SCHED_FIFO priority must be 0 (none) or 1..99, got " + std::to_string(priority));
+  realtime.priority = priority >= 0 && priority <= 99 ? static_cast<int>(priority) : 0;
+  const std::int64_t cpu = p.integer("cpu", -1);
+  p.check(cpu >= -1 && cpu < 1024, "cpu", "cpu must be -1 (any) or a CPU index, got " + std::to_string(cpu));
+  realtime.cpu = cpu >= -1 && cpu < 1024 ? static_cast<int>(cpu) : -1;
   realtime.lock_memory = p.flag("lock_memory", false);
   const auto policy = p.choice("overrun_policy", {"skip", "catch_up", "stop"}, "skip");
   realtime.overrun_policy = policy == "stop"       ? OverrunPolicy::stop
@@ -1187,6 +1217,62 @@ void Pipeline::Impl::parse_telemetry(const YAML::Node& t) {
   detail::report_unread_keys(p);
 }
 
+void Pipeline::Impl::parse_envelope(const YAML::Node& node) {
+  envelope_at = ops.size();
+  for (std::size_t i = 0; i < ops.size(); ++i)
+    if (ops[i].write_phase) {
+      envelope_at = i;
+      break;
+    }
+  if (!node) return;
+  if (!node.IsMap()) {
+    error(detail::location_of(node, file), "envelope",
+          "expected a map `<block>.<port>: {max_abs: [...], max_rate: [...], max_invalid_s: ...}`");
+    return;
+  }
+  const double inf = std::numeric_limits<double>::infinity();
+  for (const auto& kv : node) {
+    const std::string ref = kv.first.Scalar();
+    const std::string path = "envelope." + ref;
+    const auto s = signal(ref);
+    if (!s) {
+      error(detail::location_of(kv.first, file), path, "no output '" + ref + "' (expected block.port)");
+      continue;
+    }
+    if (!kv.second.IsMap()) {
+      error(detail::location_of(kv.second, file), path, "expected a map (min, max, max_abs, max_rate, max_invalid_s)");
+      continue;
+    }
+    Params p = detail::make_params(kv.second, path, file, diag);
+    const std::size_t n = s->size();
+    Envelope::Limit limit;
+    limit.signal = ref;
+    limit.data = s->data;
+    limit.elements = s->elements;
+    limit.min = p.numbers("min", std::vector<double>(n, -inf), n);
+    limit.max = p.numbers("max", std::vector<double>(n, inf), n);
+    const auto max_abs = p.numbers("max_abs", std::vector<double>(n, inf), n);
+    limit.max_rate = p.numbers("max_rate", std::vector<double>(n, inf), n);
+    for (std::size_t i = 0; i < n && i < max_abs.size() && i < limit.min.size() && i < limit.max.size(); ++i) {
+      p.check(max_abs[i] > 0, "max_abs", "every max_abs must be > 0");
+      limit.min[i] = std::max(limit.min[i], -max_abs[i]);
+      limit.max[i] = std::min(limit.max[i], max_abs[i]);
+      p.check(limit.min[i] < limit.max[i], "max", "every element's range must be non-empty (min < max)");
+    }
+    for (double r : limit.max_rate) p.check(r > 0, "max_rate", "every max_rate must be > 0 (units per second)");
+    if (p.has("max_invalid_s")) {
+      const double s_invalid = p.number("max_invalid_s");
+      p.check(s_invalid >= 0 && s_invalid <= 3600, "max_invalid_s", "must be 0..3600 s");
+      limit.max_invalid_ns = std::llround(std::clamp(s_invalid, 0.0, 3600.0) * 1e9);
+    }
+    const bool limits_something = p.has("min") || p.has("max") || p.has("max_abs") || p.has("max_rate") ||
+                                  p.has("max_invalid_s");
+    if (!limits_something) p.fail("an envelope entry must set min, max, max_abs, max_rate or max_invalid_s");
+    detail::report_unread_keys(p);
+    if (p.ok()) envelope.add(std::move(limit));
+  }
+}
+
 void Pipeline::Impl::parse_health(const YAML::Node& h) {
   if (!h) return;
   if (!h.IsMap()) {
@@ -1297,14 +1383,9 @@ Pipeline::~Pipeline() {
 
 std::unique_ptr<Pipeline> Pipeline::load_file(const std::string& path, PluginRegistry& registry,
                                               Diagnostics& diagnostics) {
-  std::ifstream in(path);
-  if (!in) {
-    diagnostics.add({path, 0, 0}, "", "cannot open the pipeline file");
-    return nullptr;
-  }
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return load_text(ss.str(), path, registry, diagnostics);
+  const auto text = read_config_file(path, diagnostics);
+  if (!text) return nullptr;
+  return load_text(*text, path, registry, diagnostics);
 }
 
 std::unique_ptr<Pipeline> Pipeline::load_text(const std::string& yaml, const std::string& label,
@@ -1316,15 +1397,14 @@ std::unique_ptr<Pipeline> Pipeline::load_text(const std::string& yaml, const std
   im.source_text = yaml;
   im.registry = &registry;
   im.diag = &diagnostics;
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml);
-  } catch (const YAML::ParserException& ex) {
-    diagnostics.add({label, ex.mark.line + 1, ex.mark.column + 1}, "",
-                    "YAML syntax error: " + ex.msg);
+  if (yaml.size() > kMaxConfigFileBytes) {
+    diagnostics.add({label, 0, 0}, "", "is larger than " + std::to_string(kMaxConfigFileBytes) +
+                                           " bytes, the most a configuration may be");
     return nullptr;
   }
-  check_duplicate_keys(root, "", label, diagnostics);
+  const auto parsed = detail::parse_config_yaml(yaml, label, diagnostics);
+  if (!parsed) return nullptr;
+  const YAML::Node& root = *parsed;
   if (!feeds.empty()) {
     auto feed = std::make_unique<BlockEntry>();
     feed->name = "feed";
@@ -1345,6 +1425,7 @@ std::unique_ptr<Pipeline> Pipeline::load_text(const std::string& yaml, const std
   im.parse_monitor(root["monitor"]);
   im.parse_telemetry(root["telemetry"]);
   im.parse_health(root["health"]);
+  im.parse_envelope(root["envelope"]);
   if (!diagnostics.empty()) return nullptr;
   return p;
 }
@@ -1357,6 +1438,7 @@ std::int64_t Pipeline::period_ns() const {
 }
 const RealtimeSettings& Pipeline::realtime() const { return impl_->realtime; }
 std::optional<double> Pipeline::default_duration_s() const { return impl_->duration_s; }
+const RecordSettings& Pipeline::record_settings() const { return impl_->record_settings; }
 const MonitorSpec& Pipeline::monitor() const { return impl_->monitor; }
 const TelemetrySpec& Pipeline::telemetry() const { return impl_->telemetry; }
 const std::string& Pipeline::source_text() const { return impl_->source_text; }
@@ -1450,6 +1532,7 @@ std::vector<Pipeline::HealthTrip> Pipeline::take_health_trips() {
 
 Status Pipeline::activate() {
   std::fill(impl_->arena.begin(), impl_->arena.end(), 0.0);
+  impl_->envelope.reset();
   std::vector<Block*> activated;
   for (auto* b : impl_->instances()) {
     Status st;
@@ -1492,9 +1575,16 @@ void Pipeline::drive_safe() noexcept {
     if (b->block && b->is_io()) b->block->drive_safe();
 }
 
+std::string Pipeline::envelope_violation() const { return impl_->envelope.violation_text(); }
+
 Pipeline::CycleResult Pipeline::run_cycle(const Tick& tick, bool time_ops) noexcept {
   auto& ops = impl_->ops;
+  const bool supervised = !impl_->envelope.empty();
   for (std::size_t i = 0; i < ops.size(); ++i) {
+    if (supervised && i == impl_->envelope_at && !impl_->envelope.check(tick)) {
+      drive_safe();
+      return {StepStatus::fault, static_cast<int>(i), nullptr, true};
+    }
     Op& op = ops[i];
     Family* family = op.family >= 0 ? &impl_->families[static_cast<std::size_t>(op.family)] : nullptr;
     const bool timed = time_ops || (family && family->health.step_budget_ns > 0);
@@ -1509,6 +1599,10 @@ Pipeline::CycleResult Pipeline::run_cycle(const Tick& tick, bool time_ops) noexc
       drive_safe();
       return {s, static_cast<int>(i), reason};
     }
+  }
+  if (supervised && impl_->envelope_at == ops.size() && !impl_->envelope.check(tick)) {
+    drive_safe();
+    return {StepStatus::fault, static_cast<int>(ops.size()) - 1, nullptr, true};
   }
   return {};
 }

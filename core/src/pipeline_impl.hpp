@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "envelope.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
 #include "lode/telemetry.hpp"
@@ -178,6 +179,7 @@ struct Pipeline::Impl {
   double rate_hz = 0.0;
   std::optional<double> duration_s;
   RealtimeSettings realtime;
+  RecordSettings record_settings;
   MonitorSpec monitor;
   TelemetrySpec telemetry;
   std::string source_text;
@@ -187,6 +189,10 @@ struct Pipeline::Impl {
   std::vector<Op> ops;
   bool active = false;
   std::vector<Family> families;
+  pipeline_detail::Envelope envelope;
+  /// The op before which the envelope is checked: the first write phase (so an out-of-bounds
+  /// command never reaches a board), or ops.size() to check after the last op.
+  std::size_t envelope_at = 0;
   std::vector<std::unique_ptr<BlockEntry>> pool;  // hot-swap instances now running in a role
   std::deque<OutputPort> synthetic_ports;          // shadow statistics outputs
 
@@ -218,6 +224,8 @@ struct Pipeline::Impl {
 
   bool parse_top(const YAML::Node& root);
   void parse_realtime(const YAML::Node& rt);
+  void parse_record(const YAML::Node& node);
+  void parse_envelope(const YAML::Node& node);
   void parse_models(const YAML::Node& models_node);
   void parse_blocks(const YAML::Node& blocks_node);
   std::vector<BlockEntry*> order_blocks();

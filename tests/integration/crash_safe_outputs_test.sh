@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# A crash of the pipeline's process drives the outputs safe (issue 6). kawato_planar runs
+# A crash of the pipeline's process drives the outputs safe. kawato_planar runs
 # closed loop through io.vme_pentek against lode-vme-emu with non-zero safe values; a block
 # with a bug (tests/core/bad_plugins/crashes_in_step.cpp) kills `lode run` mid-run:
 #  1. a write through a null pointer: lode dies of SIGSEGV (exit status 139 as before), says
@@ -24,8 +24,10 @@ with_crash() {  # with_crash HOW OUT
 import sys
 text = open(sys.argv[1]).read()
 block = "  buggy:\n    plugin: test.crashes_in_step\n    at_cycle: 800\n    how: %s\n\n" % sys.argv[2]
-assert "\nmonitor:" in text
-print(text.replace("\nmonitor:", "\n" + block + "monitor:", 1), end="")
+# The blocks end where the next top-level section starts (envelope:, else monitor:).
+after = "\nenvelope:" if "\nenvelope:" in text else "\nmonitor:"
+assert after in text
+print(text.replace(after, "\n" + block + after[1:], 1), end="")
 PY
 }
 with_crash segv "$TMP/segv.yaml"

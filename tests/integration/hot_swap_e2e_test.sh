@@ -1,14 +1,15 @@
 #!/usr/bin/env bash
-# Hot swap, promotion and the health fallback end to end, with separate processes (issue 5):
+# Hot swap, promotion and the health fallback end to end, with separate processes:
 # `lode run config/kawato_planar_swap.yaml` on the real clock with telemetry on its own DDS
 # domain; `lode swap` over the local socket (Kalman -> hybrid), `lode swap --promote`, then
 # `lode set stage.inject_nan_channel 0` (a Hall channel turns NaN). Checks the replies, that the
 # health trip and the fallback are in the recording's events (HDF5) and were published on the
 # events topic (`lode echo events`), and the run summary's swap count.
-# usage: hot_swap_e2e_test.sh LODE SRC DOMAIN
+# usage: hot_swap_e2e_test.sh LODE SRC
 set -u
-LODE=$1 SRC=$2 DOMAIN=$3
+LODE=$1 SRC=$2
 source "$(dirname "$0")/test_lib.sh"
+take_private_domain
 
 # Own domain; no SCHED_FIFO (CI shares two cores); long enough for the commands below.
 sed -e "s/^  domain: 0/  domain: $DOMAIN/" -e "s/^realtime: .*/realtime: { overrun_policy: skip }/" \
@@ -45,7 +46,11 @@ contains "refusal says why and that the incumbent runs on" "$TMP/refused.out" "n
 "$LODE" set --local stage.inject_nan_channel 0 >"$TMP/nan.out" 2>&1
 check_rc "inject NaN on a Hall channel" 0 $? "$TMP/nan.out"
 
-wait $RUN; check_rc "run (the fallback keeps it going)" 0 $? "$TMP/run.out"
+# The fallback takes over in the cycle of the trip; the NaN stays, so kf_coast runs on
+# prediction alone, and the envelope (glsdc.pose: max_invalid_s 0.05) ends that after 50 ms
+# with the outputs driven safe: a stage must not coast away (unbounded, it did).
+wait $RUN; check_rc "the run faults once the fallback has coasted its envelope's 0.05 s" 1 $? "$TMP/run.out"
+contains "the fault names the envelope" "$TMP/run.out" "envelope: glsdc.pose has been invalid \(non-finite\) for [0-9.]+ ms, longer than its max_invalid_s of 50 ms"
 wait $ECHO
 
 contains "published: the swap" "$TMP/events.out" "\[swap\] swapped kf: estimator.kalman -> estimator.hybrid_h2hinf"

@@ -552,6 +552,11 @@ TraverseResult traverse(bool third_sensor) {
   ramp["start_s"] = 0.2;
   ramp["duration_s"] = 3.0;
   root["blocks"]["ref"] = ramp;
+  // Without the shipped envelope: with two sensors the GLSDC estimate is off by up to 4.8 mm
+  // for a moment on the way, the controller answers with up to 332 N and 60 N*m, and the
+  // envelope (62 N, 10 N*m) rightly stops the run there. This test asks something else:
+  // whether the estimate slips a pitch over 150 mm.
+  root.remove("envelope");
   if (third_sensor) {
     for (const char* model : {"hall_true", "hall_fit"}) {
       YAML::Node c;

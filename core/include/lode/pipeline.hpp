@@ -39,6 +39,22 @@ struct RealtimeSettings {
   bool real_clock = false;
 };
 
+/// How `lode run --record` treats its file (the `record:` section).
+struct RecordSettings {
+  /// Wall-clock time between two flushes of the recording to the file: a crash (SIGKILL, power
+  /// cut after the OS wrote its cache) loses at most this much of the run.
+  double flush_interval_s = 1.0;
+  /// What a failing recording (disk full, I/O error) does to the run: the recorder always
+  /// stops cleanly and says what it kept; with `stop` the run also faults (outputs safe).
+  bool stop_on_error = false;
+};
+
+/// Why `name` cannot name a pipeline, or "" when it can. The name becomes a file name (the
+/// local command socket) and part of DDS participant and topic names, so it is held to
+/// letters, digits, '_', '-' and '.', not starting with '.' or '-', at most 64 characters:
+/// `../../evil` must not reach outside the runtime directory.
+std::string pipeline_name_problem(const std::string& name);
+
 struct SignalRef {
   std::string block;
   std::string port;
@@ -74,6 +90,7 @@ class Pipeline {
     StepStatus status = StepStatus::ok;
     int failed_op = -1;            ///< index into ops() when status is fault
     const char* reason = nullptr;  ///< set when the health monitor faulted the cycle (else ask the block)
+    bool envelope = false;         ///< the envelope faulted the cycle: see envelope_violation()
   };
 
   /// A health-monitor trip (`health:` section), taken off the RT thread by whoever posts events.
@@ -106,6 +123,7 @@ class Pipeline {
   [[nodiscard]] std::int64_t period_ns() const;
   [[nodiscard]] const RealtimeSettings& realtime() const;
   [[nodiscard]] std::optional<double> default_duration_s() const;
+  [[nodiscard]] const RecordSettings& record_settings() const;
   [[nodiscard]] const MonitorSpec& monitor() const;
   /// The `telemetry:` section (enabled == false when absent). Defined in telemetry.hpp.
   [[nodiscard]] const TelemetrySpec& telemetry() const;
@@ -119,6 +137,8 @@ class Pipeline {
   /// On a fault every io block is driven safe before returning.
   CycleResult run_cycle(const Tick& tick, bool time_ops) noexcept;
   void drive_safe() noexcept;
+  /// After a cycle the envelope faulted: which value left which limit, when (not for the RT thread).
+  [[nodiscard]] std::string envelope_violation() const;
 
   [[nodiscard]] std::vector<Op>& ops();
   [[nodiscard]] const std::vector<Op>& ops() const;

@@ -1,0 +1,102 @@
+#include "envelope.hpp"
+
+#include <cmath>
+#include <cstdio>
+
+namespace lode::pipeline_detail {
+
+void Envelope::add(Limit limit) {
+  State s;
+  s.previous.assign(limit.elements ? limit.elements->size() : 0, 0.0);
+  states_.push_back(std::move(s));
+  limits_.push_back(std::move(limit));
+}
+
+void Envelope::reset() noexcept {
+  for (State& s : states_) {
+    s.have_previous = false;
+    s.invalid_since_ns = -1;
+  }
+  violated_ = false;
+}
+
+bool Envelope::breach(std::size_t limit, std::size_t element, Breach what, double value, double bound,
+                      const Tick& tick) noexcept {
+  if (!violated_) {
+    violation_ = {limit, element, what, value, bound, tick.cycle, static_cast<double>(tick.time_ns) * 1e-9};
+    violated_ = true;
+  }
+  return false;
+}
+
+bool Envelope::check(const Tick& tick) noexcept {
+  for (std::size_t l = 0; l < limits_.size(); ++l) {
+    const Limit& limit = limits_[l];
+    State& state = states_[l];
+    const std::size_t n = state.previous.size();
+    bool all_finite = true;
+    for (std::size_t i = 0; i < n; ++i) all_finite = all_finite && std::isfinite(limit.data[i]);
+    if (limit.max_invalid_ns >= 0) {
+      if (all_finite) state.invalid_since_ns = -1;
+      else if (state.invalid_since_ns < 0) state.invalid_since_ns = tick.time_ns;
+      const std::int64_t invalid_ns = state.invalid_since_ns < 0 ? 0 : tick.time_ns - state.invalid_since_ns;
+      if (state.invalid_since_ns >= 0 && invalid_ns > limit.max_invalid_ns) {
+        std::size_t bad = 0;
+        while (bad + 1 < n && std::isfinite(limit.data[bad])) ++bad;
+        return breach(l, bad, Breach::invalid, static_cast<double>(invalid_ns) * 1e-9,
+                      static_cast<double>(limit.max_invalid_ns) * 1e-9, tick);
+      }
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      const double v = limit.data[i];
+      // A NaN fails a comparison: where invalid values have their own budget they are judged
+      // by it alone, elsewhere a NaN is outside every bound.
+      if (!std::isfinite(v) && limit.max_invalid_ns >= 0) continue;
+      if (!(v >= limit.min[i])) return breach(l, i, Breach::below, v, limit.min[i], tick);
+      if (!(v <= limit.max[i])) return breach(l, i, Breach::above, v, limit.max[i], tick);
+      if (state.have_previous && std::isfinite(state.previous[i]) && std::isfinite(v)) {
+        const double rate = std::abs(v - state.previous[i]) / tick.dt_s;
+        if (rate > limit.max_rate[i]) return breach(l, i, Breach::rate, rate, limit.max_rate[i], tick);
+      }
+    }
+    for (std::size_t i = 0; i < n; ++i) state.previous[i] = limit.data[i];
+    state.have_previous = true;
+  }
+  return true;
+}
+
+std::string Envelope::violation_text() const {
+  if (!violated_) return "envelope: no violation";
+  const Violation& v = violation_;
+  const Limit& limit = limits_[v.limit];
+  std::string element = std::to_string(v.element);
+  std::string unit;
+  if (limit.elements && v.element < limit.elements->size()) {
+    element = (*limit.elements)[v.element].name;
+    unit = (*limit.elements)[v.element].unit;
+  }
+  const std::string where = limit.signal + "." + element;
+  char when[96];
+  std::snprintf(when, sizeof when, " (cycle %llu, t = %.4f s)", static_cast<unsigned long long>(v.cycle), v.time_s);
+  const auto number = [](double x, const std::string& u) {
+    char buf[48];
+    std::snprintf(buf, sizeof buf, "%.4g", x);
+    return u.empty() ? std::string(buf) : std::string(buf) + " " + u;
+  };
+  switch (v.breach) {
+    case Breach::below:
+      return "envelope: " + where + " = " + number(v.value, unit) + " is below its limit " + number(v.bound, unit) + when;
+    case Breach::above:
+      return "envelope: " + where + " = " + number(v.value, unit) + " is above its limit " + number(v.bound, unit) + when;
+    case Breach::rate:
+      return "envelope: " + where + " changes at " + number(v.value, unit + "/s") + ", faster than its limit " +
+             number(v.bound, unit + "/s") + when;
+    case Breach::invalid:
+      return "envelope: " + limit.signal + " has been invalid (non-finite) for " + number(v.value * 1e3, "ms") +
+             ", longer than its max_invalid_s of " + number(v.bound * 1e3, "ms") +
+             " (an estimator fed by it runs on prediction alone)" + when;
+  }
+  return "envelope: violated";
+}
+
+}  // namespace lode::pipeline_detail
