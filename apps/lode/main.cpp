@@ -276,6 +276,12 @@ int cmd_run(const Args& args) {
     }
   }
   const auto cycles = static_cast<std::uint64_t>(std::llround(duration * p->rate_hz()));
+  if (cycles == 0) {
+    // The scheduler reads 0 cycles as "until stopped": never let a short duration round to it.
+    std::fprintf(stderr, "lode: a duration of %g s is shorter than one cycle at %g Hz\n", duration,
+                 p->rate_hz());
+    return kExitConfig;
+  }
 
   // The end-of-run summary, computed as the rows are drained (memory independent of length).
   lode::cli::RunAnalysis analysis(*p);
@@ -403,6 +409,10 @@ int cmd_run(const Args& args) {
   summary["warnings"] = lode::Json::array();
   for (const auto& w : result.warnings) summary["warnings"].push(w);
   summary["events"] = events.to_json();
+  // The summary keeps the first and the latest events; how many fell between is said, not hidden.
+  summary["events_posted"] = events.posted();
+  summary["events_dropped"] = events.dropped();
+  summary["events_suppressed"] = events.suppressed();  // refused commands beyond 10 a second
 
   // Timing, human-readable.
   const auto& tj = *summary.find("timing");
@@ -443,6 +453,17 @@ int cmd_run(const Args& args) {
   if (analysis.dropped() > 0)
     std::printf("  WARNING: %llu recorded samples dropped (consumer too slow)\n",
                 static_cast<unsigned long long>(analysis.dropped()));
+  if (const auto* recs = summary.find("recordings")) {
+    for (const auto& r : recs->elements()) {
+      const auto* error = r.find("error");
+      std::printf("  recording: %s: %llu cycles%s%s\n", r.find("file")->as_string().c_str(),
+                  static_cast<unsigned long long>(r.find("cycles")->as_number()),
+                  error ? (", " + std::to_string(static_cast<unsigned long long>(r.find("lost")->as_number())) +
+                           " lost; FAILED: " + error->as_string()).c_str()
+                        : "",
+                  !error && r.find("dropped")->as_number() > 0 ? ", some dropped (see the summary)" : "");
+    }
+  }
   if (result.faulted) std::printf("  FAULT: %s (outputs driven safe)\n", result.fault.c_str());
 
   if (args.options.count("--summary-json")) {

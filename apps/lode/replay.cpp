@@ -682,12 +682,13 @@ int cmd_replay(int argc, char** argv) {
         } else {
           mismatch = true;
           if (!cmp.first_difference.empty())
-            std::printf("NOT bit-identical: first difference in %s\n", cmp.first_difference.c_str());
+            std::printf("NOT bit-identical with %s: first difference in %s\n", recording.c_str(),
+                        cmp.first_difference.c_str());
           else if (cmp.series == 0)
-            std::printf("NOT bit-identical: no series in common\n");
+            std::printf("NOT bit-identical with %s: no series in common\n", recording.c_str());
           if (!digest_ok)
-            std::printf("NOT bit-identical: output digest %s replayed, %s recorded\n", cr.digest.c_str(),
-                        recorded_digest.c_str());
+            std::printf("NOT bit-identical with %s: output digest %s replayed, %s recorded\n", recording.c_str(),
+                        cr.digest.c_str(), recorded_digest.c_str());
         }
         for (const auto& s : cmp.only_in_one) cr.notes.push_back("not compared: " + s);
       }

@@ -70,6 +70,7 @@ std::string hostname() {
 
 struct RunServices::Impl {
   Pipeline* pipeline = nullptr;
+  Scheduler* scheduler = nullptr;
   EventLog* events = nullptr;
   const RunStats* stats = nullptr;
   RunServiceOptions options;
@@ -92,6 +93,8 @@ struct RunServices::Impl {
   std::vector<double> rows;
   std::size_t event_cursor = 0;
   std::uint64_t recorded_cycles = 0;
+  std::uint64_t flushed_cycles = 0;  // recorded_cycles at the last flush that succeeded
+  std::chrono::steady_clock::time_point last_flush = std::chrono::steady_clock::now();
   Json finished_recordings = Json::array();
   std::uint64_t sim_waits = 0;
   std::uint64_t last_published = 0;
@@ -164,6 +167,8 @@ struct RunServices::Impl {
     rows.clear();
     recording_path = path;
     recorded_cycles = 0;
+    flushed_cycles = 0;
+    last_flush = std::chrono::steady_clock::now();
     first_cycle.reset();
     recording_from_start = !running.load();
     event_cursor = 0;
@@ -187,6 +192,49 @@ struct RunServices::Impl {
       ++recorded_cycles;
     }
     for (const auto& e : events->since(event_cursor)) recorder->add_event(e.cycle, e.time_ns, e.kind, e.text);
+  }
+
+  /// With record_mutex held. Writes what was drained to the file at most every
+  /// record.flush_interval_s of wall time (always when `force`), so that a crash loses at most
+  /// that much; the first write error ends the recording (recording_failed()).
+  void flush_recording(bool force) {
+    if (!recorder) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (!force && now - last_flush < std::chrono::duration<double>(pipeline->record_settings().flush_interval_s))
+      return;
+    last_flush = now;
+    if (auto st = recorder->flush(); !st) {
+      recording_failed(st.message());
+      return;
+    }
+    flushed_cycles = recorded_cycles;
+  }
+
+  /// With record_mutex held. A recording that cannot be written (disk full, I/O error) stops
+  /// here, cleanly: the tap closes, the file is closed as far as HDF5 can, the event and the
+  /// summary say what the file holds and what was lost, and with record.on_error: stop the run
+  /// faults (outputs safe).
+  void recording_failed(const std::string& why) {
+    record_tap->open().store(false, std::memory_order_release);
+    const bool stop_run = pipeline->record_settings().stop_on_error;
+    const std::uint64_t lost = recorded_cycles - flushed_cycles;
+    const Status closed = recorder->close();
+    std::string text = "recording " + recording_path + " failed: " + why + "; recording stopped. The file keeps " +
+                       std::to_string(flushed_cycles) + " cycles (up to its last flush); " + std::to_string(lost) +
+                       " cycles recorded after that are lost" +
+                       (closed ? std::string() : " (closing it failed too: " + closed.message() + ")") +
+                       (stop_run ? "; record.on_error: stop ends the run" : "; the run goes on (record.on_error: continue)");
+    events->post(stats->last_time_ns.load(), stats->cycles.load(), stop_run ? "fault" : "warning", text);
+    Json j = Json::object();
+    j["file"] = recording_path;
+    j["cycles"] = flushed_cycles;
+    j["dropped"] = record_tap->tap().dropped();
+    j["lost"] = lost;
+    j["error"] = why;
+    j["complete"] = false;
+    finished_recordings.push(std::move(j));
+    recorder.reset();
+    if (stop_run) scheduler->request_fault("recording: " + why + " (record.on_error: stop)");
   }
 
   Status close_recording() {
@@ -214,8 +262,11 @@ struct RunServices::Impl {
     auto st = recorder->close();
     Json j = Json::object();
     j["file"] = recording_path;
-    j["cycles"] = recorded_cycles;
+    j["cycles"] = st ? recorded_cycles : flushed_cycles;
     j["dropped"] = record_tap->tap().dropped();
+    j["lost"] = st ? std::uint64_t{0} : recorded_cycles - flushed_cycles;
+    if (!st) j["error"] = st.message();
+    j["complete"] = st.is_ok() && record_tap->tap().dropped() == 0;
     finished_recordings.push(std::move(j));
     recorder.reset();
     return st;
@@ -269,6 +320,7 @@ Expected<std::unique_ptr<RunServices>> RunServices::start(Pipeline& pipeline, Sc
   std::unique_ptr<RunServices> s(new RunServices());
   Impl& im = *s->impl_;
   im.pipeline = &pipeline;
+  im.scheduler = &scheduler;
   im.events = &events;
   im.stats = &scheduler.stats();
   im.options = options;
@@ -343,6 +395,7 @@ void RunServices::on_idle() {
   {
     std::lock_guard lock(im.record_mutex);
     im.drain_recording();
+    im.flush_recording(false);
   }
   if (im.telemetry_tap && im.bridge) {
     // Watchdog: samples waiting but nothing published for 3 s means the publisher thread
@@ -470,6 +523,7 @@ Json RunServices::summary() const {
     l["requests"] = ls.requests;
     l["malformed"] = ls.malformed;
     l["refused_clients"] = ls.refused_clients;
+    l["idle_closed"] = ls.idle_closed;
     j["local_control"] = std::move(l);
   }
   if (im.hot_swap) {

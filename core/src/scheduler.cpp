@@ -93,6 +93,7 @@ bool Scheduler::cycle(const Tick& tick, RunResult& result) noexcept {
     result.faulted = true;
     fault_op_ = r.failed_op;
     fault_reason_ = r.reason;
+    fault_envelope_ = r.envelope;
     return false;
   }
   return true;
@@ -106,6 +107,15 @@ std::vector<std::uint64_t> RunStats::logged_overruns() const {
   return out;
 }
 
+void Scheduler::request_fault(std::string reason) {
+  {
+    std::lock_guard lock(requested_fault_mutex_);
+    if (!requested_fault_.empty()) return;
+    requested_fault_ = std::move(reason);
+  }
+  fault_requested_.store(true, std::memory_order_release);
+}
+
 RunResult Scheduler::run(std::uint64_t cycles, const std::atomic<bool>& stop,
                          const std::function<void()>& on_idle) {
   const auto wall_start = std::chrono::steady_clock::now();
@@ -114,6 +124,13 @@ RunResult Scheduler::run(std::uint64_t cycles, const std::atomic<bool>& stop,
   result.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   const auto cycle = stats_.cycles.load();
   const auto t = stats_.last_time_ns.load();
+  if (!result.faulted && fault_requested_.load(std::memory_order_acquire)) {
+    std::lock_guard lock(requested_fault_mutex_);
+    result.faulted = true;
+    result.stopped_by_request = false;
+    result.fault = requested_fault_;
+  }
+  if (result.faulted && fault_envelope_ && result.fault.empty()) result.fault = pipeline_.envelope_violation();
   if (result.faulted && fault_op_ >= 0) {
     const auto& op = pipeline_.ops()[static_cast<std::size_t>(fault_op_)];
     if (result.fault.empty())
@@ -132,6 +149,10 @@ RunResult Scheduler::run_simulated(std::uint64_t cycles, const std::atomic<bool>
   Tick tick;
   tick.dt_s = 1.0 / pipeline_.rate_hz();
   for (std::uint64_t k = 0; cycles == 0 || k < cycles; ++k) {
+    if (fault_requested_.load(std::memory_order_relaxed)) {
+      pipeline_.drive_safe();
+      break;
+    }
     if (stop.load(std::memory_order_relaxed)) {
       result.stopped_by_request = true;
       break;
@@ -180,6 +201,10 @@ RunResult Scheduler::run_real(std::uint64_t cycles, const std::atomic<bool>& sto
     std::uint64_t overruns = 0;
     bool overrun_stop = false;
     while ((cycles == 0 || k < cycles) && !stop.load(std::memory_order_relaxed)) {
+      if (fault_requested_.load(std::memory_order_relaxed)) {
+        pipeline_.drive_safe();
+        break;
+      }
       clock_.sleep_until(deadline);
       const std::int64_t woke = clock_.now_ns();
       stats_.wake_latency.record(woke - deadline);
@@ -220,7 +245,7 @@ RunResult Scheduler::run_real(std::uint64_t cycles, const std::atomic<bool>& sto
   }
   rt.join();
   release_process_realtime();
-  if (stop.load() && !result.faulted) result.stopped_by_request = true;
+  if (stop.load() && !result.faulted && !fault_requested_.load()) result.stopped_by_request = true;
   result.warnings.insert(result.warnings.end(), thread_warnings.begin(), thread_warnings.end());
   for (const auto& w : result.warnings) events_.post(0, 0, "warning", w);
   return result;

@@ -11,6 +11,7 @@ SRC=$2
 PY=/usr/bin/python3
 WORK=$(mktemp -d)
 trap 'rm -rf "$WORK"' EXIT
+export XDG_RUNTIME_DIR=$WORK/run && mkdir -m 700 "$XDG_RUNTIME_DIR"  # our own command sockets
 fail() { echo "FAIL: $*"; exit 1; }
 
 cd "$WORK" || exit 1
@@ -62,7 +63,7 @@ PY
 rc=$?
 cat bad.txt
 [ $rc -eq 1 ] || fail "replay of a corrupted recording exited $rc, expected 1"
-grep -q "NOT bit-identical: first difference in series .*cycle 1000" bad.txt || fail "first difference not named at cycle 1000"
+grep -q "NOT bit-identical with .*: first difference in series .*cycle 1000" bad.txt || fail "first difference not named at cycle 1000"
 
 # 3. Three other estimator sets and a comparison report.
 "$LODE" replay rec.h5 --config "$SRC/config/replay/kawato_planar_hybrid.yaml" \

@@ -10,6 +10,7 @@
 
 #include <array>
 #include <atomic>
+#include <mutex>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -124,6 +125,11 @@ class Scheduler {
 
   [[nodiscard]] const RunStats& stats() const { return stats_; }
 
+  /// From a thread other than the RT one (a service that found the run cannot go on, such as a
+  /// recording that must not lose data): end the run as a fault with `reason`. The RT thread
+  /// drives the outputs safe before its next cycle; the first reason given is kept.
+  void request_fault(std::string reason);
+
  private:
   RunResult run_simulated(std::uint64_t cycles, const std::atomic<bool>& stop,
                           const std::function<void()>& on_idle);
@@ -141,6 +147,11 @@ class Scheduler {
   // Fault details written by the RT thread, read after it joins.
   int fault_op_ = -1;
   const char* fault_reason_ = nullptr;
+  bool fault_envelope_ = false;
+  // request_fault(): the flag is all the RT thread reads; the text is read after it joins.
+  std::atomic<bool> fault_requested_{false};
+  std::mutex requested_fault_mutex_;
+  std::string requested_fault_;
 };
 
 }  // namespace lode

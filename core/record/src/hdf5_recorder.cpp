@@ -25,7 +25,17 @@ constexpr std::array<const char*, 4> kTimeColumns = {"cycle", "stamp_ns", "captu
 
 // HDF5 prints its error stack to stderr by default; errors become Status messages instead.
 // The setting is per thread in the thread-safe build, so every entry point calls this.
-void silence_hdf5_errors() { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); }
+//
+// The first call also tells HDF5 not to install its atexit() clean-up, before anything else
+// initialises the library. Every file this code opens it closes itself; the clean-up only
+// ever matters for objects HDF5 could not close, and with those it crashes: after a write
+// failed (a full disk) the datasets stay open, and closing them at exit dies of SIGSEGV in
+// H5D_close, taking the run's exit status and summary with it.
+void silence_hdf5_errors() {
+  static const bool no_atexit = [] { return H5dont_atexit() >= 0; }();
+  (void)no_atexit;
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+}
 
 herr_t collect_error(unsigned /*depth*/, const H5E_error2_t* error, void* data) {
   auto* descriptions = static_cast<std::vector<std::string>*>(data);
@@ -46,6 +56,17 @@ std::string hdf5_message() {
   std::string text = descriptions.front();
   if (descriptions.size() > 1) text += ": " + descriptions.back();
   std::replace(text.begin(), text.end(), '\n', ' ');
+  // The POSIX driver's text carries the whole write call ("file write failed: time = ...,
+  // filename = ..., errno = 28, error message = 'No space left on device', buf = ...");
+  // what a user needs of it is the error message.
+  const std::string marker = "error message = '";
+  if (const auto at = text.find(marker); at != std::string::npos) {
+    const auto end = text.find('\'', at + marker.size());
+    const std::string reason = text.substr(at + marker.size(), end == std::string::npos ? std::string::npos
+                                                                                       : end - at - marker.size());
+    const auto cut = text.find(": time = ");
+    text = (cut == std::string::npos ? text.substr(0, at) : text.substr(0, cut)) + ": " + reason;
+  }
   return text;
 }
 
