@@ -1,7 +1,7 @@
 // The telemetry bridge and the client in one process: a real pipeline (source.sine) run by
 // the Scheduler on a simulated clock, its TelemetryTap and ControlService as hooks, the
 // bridge publishing over the loopback transport (shared memory + UDPv4 127.0.0.1, no
-// multicast) and a Client subscribing and commanding. Domains 170-179, one per test.
+// multicast) and a Client subscribing and commanding, each test on a private DDS domain.
 #include <gtest/gtest.h>
 #include <pthread.h>
 
@@ -27,6 +27,7 @@
 #include "lode/plugin_loader.hpp"
 #include "lode/scheduler.hpp"
 #include "lode/telemetry.hpp"
+#include "lode/testing/private_domain.hpp"
 
 namespace {
 
@@ -229,7 +230,7 @@ TEST(Participant, OptionsFromEnvironment) {
 // --- data ---------------------------------------------------------------------------------
 
 TEST(Bridge, EverySampleArrivesInOrderWithMetadata) {
-  constexpr int kDomain = 170;
+  const int kDomain = lode::testing::private_dds_domain();
   constexpr std::uint64_t kCycles = 10000;
   Rig rig(pipeline_yaml(kDomain, "  history: 2048\n"));
   ASSERT_TRUE(rig.ok());
@@ -304,7 +305,7 @@ TEST(Bridge, EverySampleArrivesInOrderWithMetadata) {
 }
 
 TEST(Bridge, LateJoinerGetsMetadataEventsAndTiming) {
-  constexpr int kDomain = 171;
+  const int kDomain = lode::testing::private_dds_domain();
   Rig rig(pipeline_yaml(kDomain, ""));
   ASSERT_TRUE(rig.ok());
   rig.events.post(0, 0, "start", "ddsdemo started (test)");
@@ -367,7 +368,7 @@ TEST(Bridge, LateJoinerGetsMetadataEventsAndTiming) {
 }
 
 TEST(Bridge, StalledReaderNeverBlocksTheScheduler) {
-  constexpr int kDomain = 172;
+  const int kDomain = lode::testing::private_dds_domain();
   constexpr std::uint64_t kCycles = 20000;
   Rig rig(pipeline_yaml(kDomain, ""));
   ASSERT_TRUE(rig.ok());
@@ -414,7 +415,7 @@ TEST(Bridge, StalledReaderNeverBlocksTheScheduler) {
 }
 
 TEST(Bridge, RealClockLatency) {
-  constexpr int kDomain = 178;
+  const int kDomain = lode::testing::private_dds_domain();
   constexpr std::uint64_t kCycles = 3000;
   // Same pipeline on the wall clock: one sample per millisecond, as in `lode run`.
   Rig rig(pipeline_yaml(kDomain, ""), /*start_bridge=*/false);  // only its pipeline is used
@@ -471,7 +472,7 @@ TEST(Bridge, RealClockLatency) {
 }
 
 TEST(Bridge, StateTopicCarriesPoseAndCovariance) {
-  constexpr int kDomain = 179;
+  const int kDomain = lode::testing::private_dds_domain();
   std::string yaml = pipeline_yaml(kDomain, "  state: {pose: wobble.out, covariance: spread.out, rate_hz: 100}\n");
   yaml.replace(yaml.find("telemetry:"), 0,
                "  spread:\n"
@@ -524,7 +525,7 @@ TEST(Bridge, StateTopicCarriesPoseAndCovariance) {
 // --- commands -----------------------------------------------------------------------------
 
 TEST(Commands, SetGetAndPreciseErrors) {
-  constexpr int kDomain = 173;
+  const int kDomain = lode::testing::private_dds_domain();
   Rig rig(pipeline_yaml(kDomain, "  commands: {enabled: true}\n"));
   ASSERT_TRUE(rig.ok());
   auto client = make_client(kDomain, "console");
@@ -593,7 +594,7 @@ TEST(Commands, SetGetAndPreciseErrors) {
 }
 
 TEST(Commands, RefusedParticipantIsAnsweredCountedAndLogged) {
-  constexpr int kDomain = 174;
+  const int kDomain = lode::testing::private_dds_domain();
   Rig rig(pipeline_yaml(kDomain, "  commands: {enabled: true, allow_participants: [console]}\n"));
   ASSERT_TRUE(rig.ok());
   auto intruder = make_client(kDomain, "intruder");
@@ -618,7 +619,7 @@ TEST(Commands, RefusedParticipantIsAnsweredCountedAndLogged) {
 }
 
 TEST(Commands, RefusedHost) {
-  constexpr int kDomain = 175;
+  const int kDomain = lode::testing::private_dds_domain();
   Rig rig(pipeline_yaml(kDomain, "  commands: {enabled: true, allow_hosts: [10.255.255.1]}\n"));
   ASSERT_TRUE(rig.ok());
   auto client = make_client(kDomain, "console");
@@ -634,7 +635,7 @@ TEST(Commands, RefusedHost) {
 }
 
 TEST(Commands, LoopbackHostAllowed) {
-  constexpr int kDomain = 176;
+  const int kDomain = lode::testing::private_dds_domain();
   Rig rig(pipeline_yaml(kDomain, "  commands: {enabled: true, allow_hosts: [127.0.0.1], allow_participants: [console]}\n"));
   ASSERT_TRUE(rig.ok());
   auto client = make_client(kDomain, "console");

@@ -5,7 +5,7 @@
 // Identities (see tools/dds-security/README.md): `stage` publishes lode/* and subscribes
 // lode/*/command; `console` publishes lode/*/command and subscribes everything; `observer`
 // subscribes everything and may not publish lode/*/command. Topic types are the lode IDL's
-// (lode::msg::Command, Reply, SignalSample). Domains 180-189, one per test.
+// (lode::msg::Command, Reply, SignalSample). Each test on a private DDS domain.
 #include "security.hpp"
 
 #include <gtest/gtest.h>
@@ -43,6 +43,7 @@
 #include "lode/testing/require.hpp"
 
 #include "lode/dds/participant.hpp"
+#include "lode/testing/private_domain.hpp"
 #include "lode_msgs.h"
 #include "lode_msgsPubSubTypes.h"
 
@@ -314,7 +315,7 @@ class SecurityTest : public ::testing::Test {
 };
 
 TEST_F(SecurityTest, ConsoleCommandReachesStageAndReplyReachesConsole) {
-  constexpr int kDomain = 180;
+  const int kDomain = lode::testing::private_dds_domain();
   auto stage = start(kDomain, "stage", identity("stage"));
   auto console = start(kDomain, "console", identity("console"));
   ASSERT_TRUE(stage && console);
@@ -364,7 +365,7 @@ TEST_F(SecurityTest, ConsoleCommandReachesStageAndReplyReachesConsole) {
 }
 
 TEST_F(SecurityTest, ObserverReadsTelemetryButCannotCommand) {
-  constexpr int kDomain = 181;
+  const int kDomain = lode::testing::private_dds_domain();
   auto stage = start(kDomain, "stage", identity("stage"));
   auto observer = start(kDomain, "observer", identity("observer"));
   ASSERT_TRUE(stage && observer);
@@ -412,7 +413,7 @@ TEST_F(SecurityTest, ObserverReadsTelemetryButCannotCommand) {
 // CA the stage does not trust: the stage refuses the participant, so the command writer
 // that its forged documents allow never matches and its commands never arrive.
 TEST_F(SecurityTest, ForgedPermissionsAreRefused) {
-  constexpr int kDomain = 182;
+  const int kDomain = lode::testing::private_dds_domain();
   lode::SecuritySpec rogue_identity = identity("observer");
   rogue_identity.permissions_ca = forged("ca.cert.pem");
   rogue_identity.governance = forged("governance.p7s");
@@ -458,7 +459,7 @@ TEST_F(SecurityTest, ForgedPermissionsAreRefused) {
 }
 
 TEST_F(SecurityTest, ParticipantWithoutSecurityCannotMatchStage) {
-  constexpr int kDomain = 183;
+  const int kDomain = lode::testing::private_dds_domain();
   auto stage = start(kDomain, "stage", identity("stage"));
   auto console = start(kDomain, "console", identity("console"));
   auto intruder = start(kDomain, "intruder", lode::SecuritySpec{});
@@ -512,11 +513,13 @@ TEST_F(SecurityTest, DiscoveryTimeWithAndWithoutSecurity) {
     return std::chrono::duration<double, std::milli>(Clock::now() - start_time).count();
   };
   constexpr int kRounds = 5;
+  const int secure_domain = lode::testing::private_dds_domain();
+  const int plain_domain = lode::testing::another_private_dds_domain();
   std::vector<double> secure_ms;
   std::vector<double> plain_ms;
   for (int round = 0; round < kRounds; ++round) {
-    secure_ms.push_back(time_to_match(184, identity("stage"), identity("console")));
-    plain_ms.push_back(time_to_match(185, lode::SecuritySpec{}, lode::SecuritySpec{}));
+    secure_ms.push_back(time_to_match(secure_domain, identity("stage"), identity("console")));
+    plain_ms.push_back(time_to_match(plain_domain, lode::SecuritySpec{}, lode::SecuritySpec{}));
     ASSERT_GE(secure_ms.back(), 0.0) << "secure participants did not match within 30 s";
     ASSERT_GE(plain_ms.back(), 0.0) << "plain participants did not match within 30 s";
   }

@@ -6,6 +6,7 @@ BUILD=$1
 HERE=$2
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
+export XDG_RUNTIME_DIR=$TMP/run && mkdir -m 700 "$XDG_RUNTIME_DIR"  # our own command sockets
 cmake --install "$BUILD" --prefix "$TMP/prefix" >/dev/null
 cmake -S "$HERE" -B "$TMP/build" -DCMAKE_PREFIX_PATH="$TMP/prefix" -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build "$TMP/build" >/dev/null

@@ -11,6 +11,7 @@ LODE=$1
 SRC=$2
 SERVER=$3
 PY=/usr/bin/python3
+source "$(dirname "$0")/private_domain.sh"
 TMP=$(mktemp -d)
 RUNNER_PID=
 cleanup() {
@@ -173,11 +174,12 @@ if "$LODE" 2>&1 | grep -q -- "--no-local-control"; then
   contains "lode run: summary counts the local requests" "$TMP/run.json" '"local_control": \{'
   contains "lode run: summary names the socket" "$TMP/run.json" "\"socket\": \"$SOCK\""
   # With telemetry on, both channels reach the same ControlService: set over DDS (--dds), read
-  # back over the socket. Domain 153: the telemetry tests use 150-152.
-  "$LODE" run "$CONFIG" --clock real --duration 60 --domain 153 --quiet >"$TMP/both.runner.log" 2>&1 &
+  # back over the socket, on a DDS domain of its own.
+  take_private_domain
+  "$LODE" run "$CONFIG" --clock real --duration 60 --domain "$DOMAIN" --quiet >"$TMP/both.runner.log" 2>&1 &
   RUNNER_PID=$!
   wait_for_socket "$TMP/both.runner.log" || fail=1
-  "$LODE" set --dds --domain 153 --transport loopback --timeout 10 observer.d 0.3 >"$TMP/dds_set.out" 2>&1
+  "$LODE" set --dds --domain "$DOMAIN" --transport loopback --timeout 10 observer.d 0.3 >"$TMP/dds_set.out" 2>&1
   check "telemetry on: set over DDS (--dds)" 0 $?
   show "$TMP/dds_set.out"
   "$LODE" set observer.d >"$TMP/dds_get.out" 2>&1; check "telemetry on: read back locally" 0 $?

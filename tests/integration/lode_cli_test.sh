@@ -5,6 +5,7 @@ LODE=$1
 SRC=$2
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
+export XDG_RUNTIME_DIR=$TMP/run && mkdir -m 700 "$XDG_RUNTIME_DIR"  # our own command sockets
 fail=0
 check() {  # name expected_rc actual_rc
   if [ "$2" != "$3" ]; then echo "FAIL: $1: exit code $3, expected $2"; fail=1; else echo "ok: $1"; fi

@@ -7,23 +7,11 @@
 #   churn     a subscriber joining, stalling and leaving 100 times changes neither the
 #             outputs of a 5 kHz simulated run (bit-identical digest) nor the overrun count
 #             of a real-clock run (reported; loosely bounded: the machines are shared).
-# usage: telemetry_test.sh PART LODE SRC CHURN_CLIENT DOMAIN
+# usage: telemetry_test.sh PART LODE SRC CHURN_CLIENT
 set -u
-PY=python3; [ -x /usr/bin/python3 ] && PY=/usr/bin/python3  # the Debian interpreter has h5py
-PART=$1 LODE=$2 SRC=$3 CHURN=$4 DOMAIN=$5
-TMP=$(mktemp -d)
-PIDS=()
-cleanup() {
-  for p in "${PIDS[@]}"; do kill "$p" 2>/dev/null; done
-  wait 2>/dev/null
-  rm -rf "$TMP"
-}
-trap cleanup EXIT
-fail=0
-ok() { echo "ok: $1"; }
-bad() { echo "FAIL: $1"; fail=1; }
-check_rc() { if [ "$2" = "$3" ]; then ok "$1"; else bad "$1: exit code $3, expected $2"; fi; }
-contains() { if grep -qE "$3" "$2"; then ok "$1"; else bad "$1: no /$3/ in $2:"; sed 's/^/    /' "$2" | tail -20; fi; }
+PART=$1 LODE=$2 SRC=$3 CHURN=$4
+source "$(dirname "$0")/test_lib.sh"
+take_private_domain
 
 # A kawato_planar variant: rate, telemetry rate, overrun policy catch_up (every cycle runs,
 # so cycle numbers are contiguous), no RT privileges needed.
@@ -133,6 +121,27 @@ commands)
   "$L" set --list "${D[@]}" >"$TMP/host.out" 2>&1; check_rc "host not allowed" 1 $?
   contains "refusal names the host rule" "$TMP/host.out" "refused: .*allow_hosts"
   kill -TERM $RUN2; wait $RUN2
+  # Two pipelines on one domain and on this host: a command that names neither is refused
+  # (exit 2) with both named, over DDS and over the local sockets; it never goes to a guess.
+  sed -e "s/^pipeline: maglev6_hybrid/pipeline: twin_a/" "$TMP/p.yaml" >"$TMP/a.yaml"
+  sed -e "s/^pipeline: maglev6_hybrid/pipeline: twin_b/" "$TMP/p.yaml" >"$TMP/b.yaml"
+  "$LODE" run "$TMP/a.yaml" --clock real --duration 60 >"$TMP/a.out" 2>&1 &
+  PIDS+=($!); RUN_A=$!
+  "$LODE" run "$TMP/b.yaml" --clock real --duration 60 >"$TMP/b.out" 2>&1 &
+  PIDS+=($!); RUN_B=$!
+  for _ in $(seq 1 60); do  # both live on the domain (each starts in its own time)
+    "$LODE" topics --domain "$DOMAIN" --wait 2 >"$TMP/twins.out" 2>&1
+    grep -q "twin_a" "$TMP/twins.out" && grep -q "twin_b" "$TMP/twins.out" && break
+    sleep 0.5
+  done
+  contains "both pipelines are live" "$TMP/twins.out" "twin_b"
+  "$L" set observer.d "${D[@]}" --name console >"$TMP/two_dds.out" 2>&1; check_rc "two pipelines, none named (DDS): exit 2" 2 $?
+  contains "the refusal names twin_a (DDS)" "$TMP/two_dds.out" "several pipelines.*twin_a"
+  contains "the refusal names twin_b (DDS)" "$TMP/two_dds.out" "several pipelines.*twin_b"
+  "$L" set observer.d >"$TMP/two_local.out" 2>&1; check_rc "two pipelines, none named (local): exit 2" 2 $?
+  contains "the refusal names both (local)" "$TMP/two_local.out" "several pipelines run on this host.*twin_[ab].*twin_[ab]"
+  "$L" set twin_b/observer.d >"$TMP/named.out" 2>&1; check_rc "named, it goes through" 0 $?
+  kill -TERM $RUN_A $RUN_B; wait $RUN_A $RUN_B
   ;;
 
 churn)

@@ -2,6 +2,10 @@
 # to stop at exit, and ok/bad/check_rc/contains that print one line per check and set $fail.
 PY=python3; [ -x /usr/bin/python3 ] && PY=/usr/bin/python3  # the Debian interpreter has h5py
 TMP=$(mktemp -d)
+# A runtime directory of our own: the local command sockets of the runs this test starts
+# cannot meet those of any other `lode run` on the host.
+export XDG_RUNTIME_DIR=$TMP/run
+mkdir -m 700 "$XDG_RUNTIME_DIR"
 PIDS=()
 cleanup() {
   for p in "${PIDS[@]}"; do kill -CONT "$p" 2>/dev/null; kill "$p" 2>/dev/null; done
@@ -18,3 +22,4 @@ check_rc() {
 }
 # contains LABEL FILE REGEX
 contains() { if grep -qE "$3" "$2"; then ok "$1"; else bad "$1: no /$3/ in $2:"; sed 's/^/    /' "$2" | tail -20; fi; }
+source "$(dirname "${BASH_SOURCE[0]}")/private_domain.sh"  # take_private_domain
