@@ -41,3 +41,21 @@ function(lode_allow_tool_skip test)
     set_tests_properties(${test} PROPERTIES SKIP_RETURN_CODE 77)
   endif()
 endfunction()
+
+# LODE_H5PY_PYTHON: a python3 that imports h5py and numpy, for the tests that read recordings
+# as a user does. Debian's python3-h5py is importable by /usr/bin/python3 (a pyenv python3 on
+# PATH usually cannot): the first interpreter that imports both. "" when there is none.
+if(NOT DEFINED LODE_H5PY_PYTHON)
+  set(h5py_python "")
+  find_package(Python3 COMPONENTS Interpreter QUIET)
+  foreach(candidate IN ITEMS "${Python3_EXECUTABLE}" /usr/bin/python3)
+    if(candidate AND NOT h5py_python)
+      execute_process(COMMAND ${candidate} -c "import h5py, numpy" RESULT_VARIABLE h5py_missing
+        OUTPUT_QUIET ERROR_QUIET)
+      if(h5py_missing EQUAL 0)
+        set(h5py_python ${candidate})
+      endif()
+    endif()
+  endforeach()
+  set(LODE_H5PY_PYTHON "${h5py_python}" CACHE INTERNAL "python3 with h5py and numpy")
+endif()
