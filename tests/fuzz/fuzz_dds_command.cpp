@@ -17,6 +17,7 @@
 #include "lode/event_log.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
+#include "command_request.hpp"
 #include "lode_msgs.h"
 
 namespace {
@@ -64,14 +65,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       return 0;  // Fast DDS drops a sample that does not deserialize
     }
   }
-  lode::ControlRequest request;
-  request.id = command.id();
-  request.kind = command.kind();
-  request.block = command.block();
-  request.name = command.name();
-  request.value = command.value();
-  request.plugin = command.plugin();
-  request.client = command.client();
+  const lode::ControlRequest request = lode::dds::detail::command_request(command, command.client());
   Rig& r = rig();
   lode::ControlRequest get;
   get.kind = "get";

@@ -22,8 +22,13 @@
 #include "lode/scheduler.hpp"
 #include "lode/testing/allocation_counter.hpp"
 #include "lode/testing/require.hpp"
+#include "config_text.hpp"
 
 namespace {
+
+using lode::test::read_config;
+using lode::test::read_file;
+using lode::test::replace;
 
 constexpr std::uint64_t kNever = ~std::uint64_t{0};
 
@@ -125,20 +130,6 @@ TEST(Envelope, InsideItNothingTrips) {
   EXPECT_EQ(r.fault_cycle, kNever) << r.fault;
 }
 
-std::string read_file(const std::string& path) {
-  std::ifstream f(path);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
-
-std::string with(std::string text, const std::string& from, const std::string& to) {
-  const auto pos = text.find(from);
-  EXPECT_NE(pos, std::string::npos) << "test fixture: '" << from << "' not in the config";
-  if (pos != std::string::npos) text.replace(pos, from.size(), to);
-  return text;
-}
-
 TEST(Envelope, AFallbackMayCoastOnlyMaxInvalidS) {
   // kawato_planar_swap at 5 kHz: a Hall channel reads NaN from t = 1 s for 2 s; kf trips and
   // kf_coast takes over in cycle 5000, then runs on prediction alone. glsdc.pose may be
@@ -147,7 +138,7 @@ TEST(Envelope, AFallbackMayCoastOnlyMaxInvalidS) {
   LODE_REQUIRE_PLUGINS("io.sim", "estimator.glsdc", "estimator.kalman", "estimator.hybrid_h2hinf", "source.sine",
                        "controller.discrete_tf");
   const std::string base = read_file(LODE_SOURCE_DIR "/config/kawato_planar_swap.yaml");
-  const std::string nan = with(base, "    seed: 1\n",
+  const std::string nan = replace(base, "    seed: 1\n",
                                "    seed: 1\n    inject_nan: { channel: a1, start_s: 1.0, duration_s: 2.0 }\n");
   const Outcome r = run(nan, 10000);
   ASSERT_TRUE(r.loaded) << r.diagnostics;
@@ -157,13 +148,13 @@ TEST(Envelope, AFallbackMayCoastOnlyMaxInvalidS) {
             std::string::npos)
       << r.fault;
   // Negative control: a dropout shorter than the bound (40 ms) rides through on the fallback.
-  const std::string short_nan = with(base, "    seed: 1\n",
+  const std::string short_nan = replace(base, "    seed: 1\n",
                                      "    seed: 1\n    inject_nan: { channel: a1, start_s: 1.0, duration_s: 0.04 }\n");
   const Outcome through = run(short_nan, 7500);
   EXPECT_EQ(through.fault_cycle, kNever) << through.fault;
   // Without the envelope the same NaN is never stopped (the stage ran away): the bound is
   // what faults it.
-  const std::string unbounded = with(nan, "  glsdc.pose: { max_invalid_s: 0.05 }", "");
+  const std::string unbounded = replace(nan, "  glsdc.pose: { max_invalid_s: 0.05 }", "");
   const Outcome runaway = run(unbounded, 7500);
   EXPECT_EQ(runaway.fault_cycle, kNever) << runaway.fault;
 }

@@ -123,7 +123,9 @@ def sigkill_mid_recording():
     # The status line lags the RT thread, so `seen` is at most the cycle at the kill: the true
     # loss is at most lost_s plus that lag (the status is printed every 0.1 s).
     expect(lost_s <= FLUSH_S + 0.25, f"{lost_s:.2f} s lost before the kill (flush every {FLUSH_S} s)")
-    expect(np.all(np.diff(cycles) == 1), "recorded cycles are not consecutive")
+    # The real clock skips the periods an overrun lost (overrun_policy: skip): increasing,
+    # not necessarily consecutive.
+    expect(np.all(np.diff(cycles) >= 1), "recorded cycles do not increase")
     return dict(detected="-", safe="n/a (SIGKILL; CAN watchdog elsewhere)", event="-",
                 recording=f"h5py reads {len(cycles)} cycles, {max(lost_s, 0):.2f} s before the kill lost")
 

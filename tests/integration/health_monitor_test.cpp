@@ -44,24 +44,15 @@
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
 #include "lode/testing/allocation_counter.hpp"
+#include "config_text.hpp"
 
 namespace {
 
+using lode::test::read_config;
+using lode::test::read_file;
+using lode::test::replace;
+
 constexpr std::uint64_t kNever = std::numeric_limits<std::uint64_t>::max();
-
-std::string read_config(const std::string& name) {
-  std::ifstream in(std::string(LODE_SOURCE_DIR) + "/config/" + name);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-std::string replace(std::string text, const std::string& from, const std::string& to) {
-  const auto pos = text.find(from);
-  EXPECT_NE(pos, std::string::npos) << "test fixture: '" << from << "' not in the config";
-  if (pos != std::string::npos) text.replace(pos, from.size(), to);
-  return text;
-}
 
 /// The shipped pipeline without its `envelope:` section. These tests watch the health monitor
 /// and its fallback through the whole of each fault; the envelope would end most of them in

@@ -38,22 +38,13 @@
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
 #include "lode/testing/allocation_counter.hpp"
+#include "config_text.hpp"
 
 namespace {
 
-std::string read_config(const std::string& name) {
-  std::ifstream in(std::string(LODE_SOURCE_DIR) + "/config/" + name);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-std::string replace(std::string text, const std::string& from, const std::string& to) {
-  const auto pos = text.find(from);
-  EXPECT_NE(pos, std::string::npos) << "test fixture: '" << from << "' not in the config";
-  if (pos != std::string::npos) text.replace(pos, from.size(), to);
-  return text;
-}
+using lode::test::read_config;
+using lode::test::read_file;
+using lode::test::replace;
 
 const char* kHybridParams =
     "{q: [1.0e2, 1.0e2, 1.0e5], r: [2.2e-10, 2.2e-10, 9.6e-9], hinf_theta: 1.0e8, d: 0.5, output: predicted}";

@@ -17,25 +17,16 @@
 #include "lode/plugin_loader.hpp"
 #include "lode/telemetry.hpp"
 #include "lode/testing/allocation_counter.hpp"
+#include "config_text.hpp"
 
 namespace {
 
+using lode::test::read_config;
+using lode::test::read_file;
+using lode::test::replace;
+
 using lode::testing::allocation_count;
 using lode::testing::measure_cycle_allocations;
-
-std::string read_file(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  return buffer.str();
-}
-
-std::string replace(std::string text, const std::string& from, const std::string& to) {
-  const auto at = text.find(from);
-  EXPECT_NE(at, std::string::npos) << "'" << from << "' not found";
-  if (at != std::string::npos) text.replace(at, from.size(), to);
-  return text;
-}
 
 std::vector<std::string> shipped_pipelines() {
   std::vector<std::string> out;

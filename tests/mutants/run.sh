@@ -44,7 +44,7 @@ while IFS=$'\t' read -r name file edit tests; do
     printf '%-34s %-8s %s\n' "$name" MISSED "$tests passed against the mutant ($log)"
     missed=$((missed + 1))
   else
-    failed=$(sed -n 's/^ *[0-9]* - \(.*\) (Failed.*/\1/p' "$log" | head -3 | paste -sd, -)
+    failed=$(sed -n 's/^[[:space:]]*[0-9]* - \(.*\) (Failed.*/\1/p' "$log" | sed 's/  # GetParam.*//' | head -3 | paste -sd, -)
     printf '%-34s %-8s %s\n' "$name" caught "${failed:-$tests}"
     caught=$((caught + 1))
   fi

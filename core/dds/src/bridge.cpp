@@ -45,6 +45,7 @@
 #include <fastdds/rtps/participant/ParticipantDiscoveryInfo.h>
 #include <fastrtps/utils/IPLocator.h>
 
+#include "command_request.hpp"
 #include "common.hpp"
 #include "lode/rt_log.hpp"
 #include "lode_msgs.h"
@@ -599,15 +600,8 @@ void Bridge::handle_command(const lode::msg::Command& command, const fdds::Sampl
     return;
   }
 
-  ControlRequest request;
-  request.id = command.id();
-  request.kind = command.kind();
-  request.block = command.block();
-  request.name = command.name();
-  request.value = command.value();
-  request.plugin = command.plugin();
   // The discovered identity when access is checked, else what the sender declares.
-  request.client = known ? peer.name : command.client();
+  const ControlRequest request = detail::command_request(command, known ? peer.name : command.client());
   commands_accepted_.fetch_add(1, std::memory_order_relaxed);
   ControlReply reply = control_->handle(request);
   reply.id = command.id();
