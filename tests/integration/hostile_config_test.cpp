@@ -39,8 +39,14 @@ struct Outcome {
 
 /// Runs `lode ARGS` under a 60 s guard (a hang must not hang the suite); captures both streams.
 Outcome run_lode(const std::string& args) {
-  const std::string cmd =
-      "timeout -k 5 60 " + std::string(LODE_BINARY_DIR) + "/apps/lode " + args + " </dev/null 2>&1";
+  // A runtime directory of its own: a `lode run` here must not meet another run's sockets.
+  static const std::string runtime = [] {
+    const std::string dir = ::testing::TempDir() + "/lode_hostile_run_" + std::to_string(::getpid());
+    ::mkdir(dir.c_str(), 0700);
+    return dir;
+  }();
+  const std::string cmd = "XDG_RUNTIME_DIR=" + runtime + " timeout -k 5 60 " + std::string(LODE_BINARY_DIR) +
+                          "/apps/lode " + args + " </dev/null 2>&1";
   const auto start = std::chrono::steady_clock::now();
   FILE* pipe = popen(cmd.c_str(), "r");
   Outcome o;
