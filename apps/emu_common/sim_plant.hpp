@@ -1,4 +1,4 @@
-// The plant behind a board emulator (lode-vme-emu, lode-can-emu; issue 6): the io.sim block of
+// The plant behind a board emulator (lode-vme-emu, lode-can-emu): the io.sim block of
 // a simulation pipeline, hosted on its own, so an emulated board's inputs read what the
 // simulated stage and its sensors would give and its outputs drive that stage.
 //

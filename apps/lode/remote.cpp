@@ -540,7 +540,7 @@ int send(const Args& args, dds::Client& client, const std::string& pipeline, Con
 }
 
 /// A command to a pipeline, over its local socket when there is one, else over DDS.
-///   --local: the socket or nothing; --dds: DDS only (the path used before issue 5).
+///   --local: the socket or nothing; --dds: DDS only (as before the local socket existed).
 ///   Which pipeline: --pipeline NAME, the "NAME/" prefix of the target (stripped here), or,
 ///   with neither, the one pipeline with a live local socket (several: say which ones).
 /// `make` builds the request from the target without its prefix; nullopt = usage error

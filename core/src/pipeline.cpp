@@ -473,7 +473,7 @@ void Pipeline::Impl::parse_blocks(const YAML::Node& blocks_node) {
 
 std::vector<BlockEntry*> Pipeline::Impl::order_blocks() {
   // io blocks are sources (read phase) and sinks (write phase): edges into them never
-  // constrain the order, so feedback through the plant is not a cycle (DESIGN.md §2).
+  // constrain the order, so feedback through the plant is not a cycle.
   std::vector<BlockEntry*> io, rest;
   std::vector<BlockEntry*> feeds;
   std::vector<BlockEntry*> shadows;  // configured after everything else, not in the cycle order

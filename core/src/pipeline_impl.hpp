@@ -1,7 +1,7 @@
 // Internal: the loaded pipeline's data, shared by pipeline.cpp (loading, the cycle, the health
 // monitor) and hot_swap.cpp (preparing replacements off the RT thread).
 //
-// Roles and instances (issue 5). A BlockEntry is both a *role* (a name with output storage in
+// Roles and instances. A BlockEntry is both a *role* (a name with output storage in
 // the arena that other blocks, taps and topics read) and an *instance record* (a Block created
 // from a plugin, with its declared ports). At load every role runs its own instance. A hot
 // swap puts another record's instance into a role; a promotion or a health fallback exchanges

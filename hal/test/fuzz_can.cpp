@@ -1,4 +1,4 @@
-// libFuzzer target (issue 6): the CAN frame decoder and the PDO codec on arbitrary bytes.
+// libFuzzer target: the CAN frame decoder and the PDO codec on arbitrary bytes.
 // Properties beyond "no crash, no sanitizer report": a decoded frame encodes back to bytes
 // that decode to the same frame; an unpacked PDO packs back to the same payload.
 #include <cstddef>

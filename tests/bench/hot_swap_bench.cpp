@@ -1,4 +1,4 @@
-// What a hot swap costs the RT thread (issue 5): config/kawato_planar_swap.yaml at 5 kHz,
+// What a hot swap costs the RT thread: config/kawato_planar_swap.yaml at 5 kHz,
 // the benchmark thread playing the RT thread (before_cycle hooks, run_cycle, after_cycle).
 //
 //   ./build/tests/lode_hot_swap_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true

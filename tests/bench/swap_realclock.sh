@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Real-clock hot swaps (issue 5): run config/kawato_planar_swap.yaml at 5 kHz on the real
+# Real-clock hot swaps: run config/kawato_planar_swap.yaml at 5 kHz on the real
 # clock and swap kf Kalman <-> hybrid H2/Hinf over the local command socket every ~0.1 s;
 # the run summary then says how many overruns fell in a swap cycle (or the next).
 #

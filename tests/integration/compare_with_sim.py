@@ -1,5 +1,5 @@
-"""A closed loop through a board and its emulator against the same pipeline through io.sim
-(issue 6): equal within quantization, or exit 1.
+"""A closed loop through a board and its emulator against the same pipeline through io.sim:
+equal within quantization, or exit 1.
 
 usage: compare_with_sim.py BOARD.h5 SIM.h5 LABEL
 

@@ -1,4 +1,4 @@
-// Issue 5: hot swap, shadows and the health monitor on seed 000's planar stage at 5 kHz
+// hot swap, shadows and the health monitor on Kawato's (2005) planar stage at 5 kHz
 // (config/kawato_planar_swap.yaml), with the test thread playing the RT thread so every
 // cycle is reproducible: before_cycle hooks, run_cycle, after_cycle hooks, as the scheduler.
 //

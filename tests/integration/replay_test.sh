@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# `lode replay` end to end (issue 5):
+# `lode replay` end to end:
 #  1. record a kawato_planar run, replay it through the recorded configuration: bit-identical, exit 0;
 #  2. corrupt one recorded raw ADC value (h5py): the replay is no longer bit-identical, exit 1;
 #  3. replay through three other estimator sets (config/replay/): the report has 4 estimator

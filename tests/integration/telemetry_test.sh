@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Telemetry and remote commands end to end, with separate processes (issue 4):
+# Telemetry and remote commands end to end, with separate processes:
 #   stream    lode run (real clock, 1 kHz, 10 s) + lode echo + lode record: every sample in
 #             order with no gap; a late joiner still gets the metadata.
 #   commands  allowed / refused participants and hosts; malformed and out-of-range commands

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# kawato_planar closed loop through io.vme_pentek and the board emulator (issue 6), with
+# kawato_planar closed loop through io.vme_pentek and the board emulator, with
 # separate processes: lode-vme-emu plays the board on a shared file, its plant the io.sim
 # block of config/kawato_planar.yaml; `lode run config/kawato_planar_vme.yaml` drives it over
 # the register interface. Checks:

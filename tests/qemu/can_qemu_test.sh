@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# io.socketcan_daq on a real CAN socket (issue 6). The host kernel has no CAN, so this boots the
-# machine's stock Debian kernel under QEMU (TCG: this host's KVM cannot run it, PLATFORM.md §3)
+# io.socketcan_daq on a real CAN socket. The host kernel has no CAN, so this boots the
+# machine's stock Debian kernel under QEMU (TCG: this host's KVM cannot run it)
 # with an initramfs made here: busybox, the kernel's can/can-raw/can-dev/vcan modules, and this
 # build's lode, lode-can-emu, plugins and io.socketcan_daq unit tests with the shared libraries
 # they load. The guest brings up vcan0 and runs tests/qemu/guest_tests.sh; its results come

@@ -1,6 +1,6 @@
 // Blocks: the units a pipeline is composed of.
 //
-// Lifecycle (STYLE.md rule 7):
+// Lifecycle:
 //
 // | state        | entered by      | thread | may allocate | what is available              |
 // |--------------|-----------------|--------|--------------|--------------------------------|
@@ -132,7 +132,7 @@ class Block : public virtual Component {
   }
   //@}
 
-  /// @name Estimator state (hot swap, issue 5).
+  /// @name Estimator state (hot swap).
   /// A block that estimates a state exports it so a replacement can warm-start from it at
   /// the cycle boundary of a hot swap, and reports its innovation so the health monitor and
   /// the shadow statistics can test it. The state exported is the prior of the coming

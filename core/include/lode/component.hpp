@@ -3,7 +3,7 @@
 
 namespace lode {
 
-/// Identity-bearing and owned by the pipeline: never copied or moved (STYLE.md rule 11).
+/// Identity-bearing and owned by the pipeline: never copied or moved.
 class Component {
  public:
   Component() = default;

@@ -1,5 +1,5 @@
 // Commands to a running pipeline: set or read a runtime parameter, swap an estimator,
-// start/stop recording (DESIGN.md §7, §9). Transport-independent: the DDS bridge, a local
+// start/stop recording. Transport-independent: the DDS bridge, a local
 // CLI and tests all go through ControlService::handle().
 //
 // Validation happens off the RT thread (block exists, parameter is tunable, value parses,

@@ -1,4 +1,4 @@
-// Safe outputs when the process dies of a bug (issue 6): a plugin that dereferences a bad
+// Safe outputs when the process dies of a bug: a plugin that dereferences a bad
 // pointer, divides by zero, or lets an exception escape a noexcept step() (std::terminate ->
 // abort). On SIGSEGV, SIGBUS, SIGFPE, SIGILL or SIGABRT the armed pipeline's io blocks drive
 // their outputs to the safe values, one line on stderr says so, and the process dies of the

@@ -1,4 +1,4 @@
-// Hot swap of a running block (issue 5, DESIGN.md §9): replace an estimator while the stage
+// Hot swap of a running block: replace an estimator while the stage
 // runs, promote a shadow, and report health-monitor fallbacks.
 //
 // Everything that can fail or allocate happens off the RT thread: load the plugin, configure

@@ -3,7 +3,7 @@
 // The simulated board (io.sim) runs a PlantModel forward and feeds its outputs through
 // MeasurementModels to make synthetic sensor signals; estimators use a MeasurementModel
 // for h(x) and its Jacobian. The simulator may be given a richer "true" model than the
-// estimator (DESIGN.md §3). All evaluation methods are RT-safe: no allocation, no throw.
+// estimator. All evaluation methods are RT-safe: no allocation, no throw.
 #pragma once
 
 #include "lode/component.hpp"

@@ -3,7 +3,7 @@
 // Loading validates everything before anything starts and collects every problem with its
 // file:line:column (Diagnostics). The cycle (run_cycle) walks a precomputed list of
 // operations: every io block's read phase, the other blocks in topological order, then
-// every io block's write phase (DESIGN.md §2).
+// every io block's write phase.
 #pragma once
 
 #include <cstdint>
@@ -160,7 +160,7 @@ class Pipeline {
   /// Names of every block, in file order.
   [[nodiscard]] std::vector<std::string> block_names() const;
   /// Blocks declared with `shadow_of: <primary>`: stepped after their primary on the same
-  /// inputs, outputs in their own storage (issue 5).
+  /// inputs, outputs in their own storage.
   struct ShadowInfo {
     std::string name;     ///< the shadow's block name (its outputs are "<name>.<port>")
     std::string primary;  ///< the block it shadows

@@ -3,7 +3,7 @@
 // A block declares its ports in configure() by passing a port member and a list of
 // elements. After every block is configured the pipeline allocates one arena for all
 // outputs and resolves each input to a pointer into it, so step() reads and writes plain
-// doubles and never looks up a name (STYLE.md rules 3 and 4).
+// doubles and never looks up a name.
 #pragma once
 
 #include <cstddef>

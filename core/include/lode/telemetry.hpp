@@ -1,5 +1,5 @@
 // Telemetry: what a pipeline publishes (the YAML `telemetry:` section) and the RT side of
-// the bridge (DESIGN.md §9).
+// the bridge.
 //
 // The RT thread never talks to Fast DDS. After each cycle it copies the published signals,
 // each at its own decimated rate, into wait-free single-producer rings (TelemetryTap); a

@@ -62,7 +62,7 @@ namespace lode::plugins {
 
 namespace ekf_encoder {
 
-/// Named state indices (STYLE.md rule 5).
+/// Named state indices.
 inline constexpr int kPosition = 0;
 inline constexpr int kVelocity = 1;
 inline constexpr int kAcceleration = 2;

@@ -50,7 +50,7 @@ namespace kalman {
 
 inline constexpr std::size_t kMaxAxes = 6;
 
-/// Index names of the per-axis state (STYLE.md rule 5).
+/// Index names of the per-axis state.
 inline constexpr int kPosition = 0;
 inline constexpr int kVelocity = 1;
 inline constexpr int kAcceleration = 2;

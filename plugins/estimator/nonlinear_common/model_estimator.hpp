@@ -9,7 +9,7 @@
 // on the loader thread; step() and everything it calls on the RT thread, with fixed-capacity
 // Eigen storage (at most kMaxStates states, kMaxChannels channels, kMaxInputs inputs).
 //
-// Wiring, by element name (STYLE.md rule 4: resolved once, in configure()):
+// Wiring, by element name (resolved once, in configure()):
 //  - `measurement` input: each channel of the measurement model is taken from the connected
 //    output's element of the same name (or by position when the sizes agree);
 //  - `input` input: each process input (e.g. coil_voltage [V]) likewise; it carries the input

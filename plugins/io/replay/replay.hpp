@@ -1,5 +1,5 @@
 // io.replay: plays back the raw inputs of a recording (`lode run --record`) cycle by cycle,
-// so any estimator set sees exactly the samples a recorded run saw (issue 5, `lode replay`).
+// so any estimator set sees exactly the samples a recorded run saw (`lode replay`).
 //
 // @system
 // name: io.replay

@@ -1,4 +1,4 @@
-// io.sim: the simulated ADC/DAC board (DESIGN.md §2, §8; spec seed-000 §2.2, §6, §9 item 2).
+// io.sim: the simulated ADC/DAC board (Kawato 2005).
 //
 // A plant model moved by the DAC commands, measurement models that turn the plant's true
 // configuration into sensor volts, and the imperfections of a real acquisition chain:

@@ -1,4 +1,4 @@
-// The analog channels a CANopen DAQ module carries in its PDOs (io.socketcan_daq, issue 6):
+// The analog channels a CANopen DAQ module carries in its PDOs (io.socketcan_daq):
 // each PDO entry is an integer object; value = scale * count + offset in the channel's unit.
 #pragma once
 

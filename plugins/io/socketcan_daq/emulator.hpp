@@ -1,4 +1,4 @@
-// A CANopen DAQ module on a CAN socket (issue 6): answers NMT, sends its heartbeat, sends its
+// A CANopen DAQ module on a CAN socket: answers NMT, sends its heartbeat, sends its
 // TPDOs after every SYNC while operational, takes its RPDOs. What its inputs read comes from
 // a front end (in tests a loopback of its outputs; in an emulator process a simulated plant).
 //

@@ -1,4 +1,4 @@
-// io.socketcan_daq: a CANopen-style analog DAQ module over SocketCAN (DESIGN.md §8, issue 6).
+// io.socketcan_daq: a CANopen-style analog DAQ module over SocketCAN.
 //
 // @system
 // name: io.socketcan_daq

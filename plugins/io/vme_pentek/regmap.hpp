@@ -1,5 +1,5 @@
 // Register map of the Pentek-like VME ADC/DAC board pair that io.vme_pentek drives and
-// lode-vme-emu plays (issue 6; seed 000 §6: a Pentek 6102 A/D and a DATEL DVME622 D/A on a
+// lode-vme-emu plays (Kawato 2005: a Pentek 6102 A/D and a DATEL DVME622 D/A on a
 // VME bus): where each register, bit and field lies in the board's window. Boards and
 // firmware revisions move registers, so the map is data: a Layout, either the built-in
 // default_layout() or parsed from a register-map file (pentek6102_dvme622.regmap is the

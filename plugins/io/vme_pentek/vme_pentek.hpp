@@ -1,5 +1,5 @@
 // io.vme_pentek: a Pentek-like VME ADC/DAC board pair through a memory-mapped register
-// window (DESIGN.md §8; issue 6; seed 000 §6). Register map and protocol: regmap.hpp and
+// window (Kawato 2005). Register map and protocol: regmap.hpp and
 // README.md; the map is the built-in default or the file named by `register_map`.
 //
 // @system

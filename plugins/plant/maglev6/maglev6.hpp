@@ -77,7 +77,7 @@ class Maglev6 final : public PlantModel, public ProcessModel {
   static constexpr std::size_t kAxes = 6;
   static constexpr std::size_t kStateSize = 12;
   static constexpr std::size_t kInputSize = 6;
-  /// Named indices (STYLE.md rule 5): pose axes; the velocity of axis i is at kAxes + i.
+  /// Named indices: pose axes; the velocity of axis i is at kAxes + i.
   enum Axis : std::size_t { kX = 0, kY, kThetaZ, kZ, kThetaX, kThetaY };
   enum Input : std::size_t { kIqA = 0, kIqB, kIqC, kIdA, kIdB, kIdC };
 

@@ -42,7 +42,7 @@ struct PlanarStageConfig {
 
 class PlanarStage final : public PlantModel {
  public:
-  /// Named indices into the state vector (STYLE.md rule 5).
+  /// Named indices into the state vector.
   enum StateIndex : std::size_t { kX = 0, kY, kThetaZ, kVx, kVy, kOmegaZ, kStateSize };
   enum InputIndex : std::size_t { kFx = 0, kFy, kTz, kInputSize };
   static constexpr std::size_t kOutputSize = 3;

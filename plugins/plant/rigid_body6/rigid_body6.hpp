@@ -39,7 +39,7 @@ namespace lode::plugins {
 
 namespace rigid_body6 {
 
-/// Named indices into the 12-element state (STYLE.md rule 5).
+/// Named indices into the 12-element state.
 enum StateIndex : std::size_t {
   kX = 0, kY, kZ, kPhi, kTheta, kPsi,  // pose P, fixed frame
   kU, kV, kW, kP, kQ, kR,              // body velocity V_B

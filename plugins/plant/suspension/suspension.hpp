@@ -95,7 +95,7 @@ Expected<ForceCurveFitSingle> fit_force_curve_d4(const std::vector<double>& gap_
 
 class Suspension final : public PlantModel, public ProcessModel {
  public:
-  /// Named indices (STYLE.md rule 5).
+  /// Named indices.
   enum StateIndex : std::size_t { kGap = 0, kVelocity, kCurrent, kStateSize };
   enum InputIndex : std::size_t { kCoilVoltage = 0, kInputSize };
   enum OutputIndex : std::size_t { kOutGap = 0, kOutCoilVoltage, kOutputSize };

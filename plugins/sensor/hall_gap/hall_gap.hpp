@@ -41,7 +41,7 @@ namespace lode::plugins {
 class HallGap final : public MeasurementModel {
  public:
   enum class Output { hall_voltage, gap };
-  /// Indices into the model's state (STYLE.md rule 5).
+  /// Indices into the model's state.
   enum StateIndex : std::size_t { kGap = 0, kCoilVoltage = 1 };
 
   HallGap();

@@ -25,7 +25,7 @@
 //   - cos: V
 // @endsensor
 //
-// Used twice (DESIGN.md §3): io.sim evaluates it to synthesise the encoder signals, and
+// Used twice: io.sim evaluates it to synthesise the encoder signals, and
 // estimator.ekf_encoder uses evaluate()/jacobian() as its measurement model.
 //
 // Threads: configure()/apply()/describe() on the loader thread; evaluate()/jacobian() on the

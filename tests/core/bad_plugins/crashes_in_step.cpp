@@ -1,4 +1,4 @@
-// A block with a bug that kills the process at a given cycle (issue 6: "a crash of the estimator
+// A block with a bug that kills the process at a given cycle ("a crash of the estimator
 // path drives the outputs safe"): a write through a null pointer (SIGSEGV), an exception
 // escaping the noexcept step() (std::terminate -> SIGABRT), or unbounded recursion (SIGSEGV on
 // the RT thread's stack guard: the handler needs its alternate stack), as a faulty estimator would.

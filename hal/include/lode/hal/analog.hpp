@@ -1,4 +1,4 @@
-// Analog converter channels shared by the hardware backends (hal/, issue 6): what one ADC or
+// Analog converter channels shared by the hardware backends (hal/): what one ADC or
 // DAC channel of a board is (name, resolution, span, code format, calibration, unit, safe
 // value) and the conversions between the board's raw codes and engineering values.
 //

@@ -1,4 +1,4 @@
-// CAN frames as the backends see them (hal/, issue 6): a classic CAN frame decoded from the
+// CAN frames as the backends see them (hal/): a classic CAN frame decoded from the
 // bytes of a SocketCAN `struct can_frame` (CAN_RAW), checked, and error frames explained.
 //
 //   CanFrame f;

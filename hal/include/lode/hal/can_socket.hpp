@@ -1,4 +1,4 @@
-// A CAN socket for the backends (hal/, issue 6): SocketCAN CAN_RAW bound to an interface
+// A CAN socket for the backends (hal/): SocketCAN CAN_RAW bound to an interface
 // (vcan0, can0) with receive filters, error frames and kernel receive timestamps enabled,
 // non-blocking; or, for tests and emulators, one end of a connected socket pair carrying
 // `struct can_frame` datagrams (timestamped too).

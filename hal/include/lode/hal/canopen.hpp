@@ -1,4 +1,4 @@
-// CANopen pieces a DAQ backend needs (hal/, issue 6; CiA 301): the predefined connection set
+// CANopen pieces a DAQ backend needs (hal/; CiA 301): the predefined connection set
 // (COB-IDs of NMT, SYNC, EMCY, PDOs, heartbeat), NMT commands, heartbeat states, EMCY
 // messages, and a PDO codec for a static mapping of integer objects packed little endian.
 //

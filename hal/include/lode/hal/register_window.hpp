@@ -1,4 +1,4 @@
-// A memory-mapped register window (hal/, issue 6): the registers of a board reached through
+// A memory-mapped register window (hal/): the registers of a board reached through
 // a UIO device (/dev/uioN, map 0), a physical-address window of /dev/mem behind a VME bridge,
 // or a shared-memory file that an emulator maps too.
 //

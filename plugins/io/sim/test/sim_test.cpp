@@ -607,7 +607,7 @@ TEST(IoSimRealtime, CycleDoesNotAllocate) {
   EXPECT_EQ(during, 0) << "allocations in 10000 read/write cycles";
 }
 
-// --- fault injection (issue 5: the health monitor's NaN trip) ---------------------------
+// --- fault injection (the health monitor's NaN trip) ---------------------------
 
 constexpr std::int64_t kWindowStartNs = 10'000'000;  // start_s: 0.01
 constexpr std::int64_t kWindowEndNs = 15'000'000;    // + duration_s: 0.005

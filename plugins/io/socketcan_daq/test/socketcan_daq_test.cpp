@@ -2,7 +2,7 @@
 // (the same frames a CAN_RAW socket on vcan0 carries) or, with LODE_CAN_INTERFACE=vcan0 (the
 // QEMU guest test, tests/qemu), over a real CAN interface: NMT start and the operational
 // heartbeat, SYNC -> TPDO exchange with no lost frame, RPDOs latched by the node, and the
-// faults of issue 6 each detected with the outputs driven safe: the node silent, the heartbeat
+// hardware faults each detected with the outputs driven safe: the node silent, the heartbeat
 // lost, bus-off, a malformed PDO length, an EMCY. Plus no allocation per cycle and located
 // configuration errors.
 #include "emulator.hpp"
@@ -184,7 +184,7 @@ TEST(SocketCanDaq, StartsTheNodeAndExchangesPdosEveryCycleWithNoLostFrame) {
               static_cast<unsigned long long>(rig.daq().frames_received()));
 }
 
-// Issue 6: PDO exchange at 1 kHz for 10 s on a real CAN socket with no lost frame. Paced by
+// PDO exchange at 1 kHz for 10 s on a real CAN socket with no lost frame. Paced by
 // absolute 1 ms deadlines (CLOCK_MONOTONIC); a late cycle starts at once and is counted. Lost,
 // repeated or reordered frames show in the TPDO2 SYNC counter (must advance by exactly one per
 // cycle), in a1 (must read the fx counts of the previous cycle's RPDO) and in the counts of

@@ -1,4 +1,4 @@
-// libFuzzer target (issue 6): the register-map parser on arbitrary bytes. Beyond "no crash, no
+// libFuzzer target: the register-map parser on arbitrary bytes. Beyond "no crash, no
 // sanitizer report": an error names the file; a map that parses has every register aligned
 // and inside the window, no two registers sharing a word, the bits of each register distinct,
 // and written back as text it parses to the same layout.

@@ -1,7 +1,7 @@
 // io.vme_pentek against the board emulator on a shared file (the same register protocol a
 // real board speaks through a UIO window): a DAC -> ADC loopback round-trips values within
 // one code, the safe values reach the outputs on a fault and on deactivate, and the three
-// board faults of issue 6 are detected within the configured timeout: the board stops
+// board faults are detected within the configured timeout: the board stops
 // answering, an error bit is set, a conversion never completes. Plus no allocation per cycle,
 // configuration errors that name the field, and a moved register map (`register_map`) used by
 // both sides.

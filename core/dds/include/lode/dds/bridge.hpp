@@ -1,4 +1,4 @@
-// The server side of telemetry (DESIGN.md §9): drains the RT thread's rings and publishes
+// The server side of telemetry: drains the RT thread's rings and publishes
 // typed topics; receives commands, checks who sent them, hands them to the ControlService
 // and publishes the reply. Everything here runs on non-RT threads.
 #pragma once
