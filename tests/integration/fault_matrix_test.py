@@ -212,57 +212,59 @@ def nan_without_fallback():
 SWAP_BASE = "kawato_planar_swap.yaml"  # 5 kHz, kf with the fallback kf_coast
 
 
+def swap_run_with(name, injection, duration_s):
+    """kawato_planar_swap with one io.sim injection (YAML text), recorded: (rc, out, summary, h5)."""
+    config = pipeline(name, SWAP_BASE, [("    seed: 1\n", "    seed: 1\n    " + injection + "\n")])
+    h5 = os.path.join(TMP, name + ".h5")
+    rc, out, summary = lode_run(config, "--duration", str(duration_s), "--record", h5)
+    return rc, out, summary, h5
+
+
+def max_abs_truth_x(h5, from_cycle=0):
+    """max |x| of the simulated truth from `from_cycle` on, and the number of cycles recorded."""
+    cycles, values, _ = recorded(h5, "stage.truth")
+    return float(np.max(np.abs(values["x"][cycles >= from_cycle]))), len(cycles)
+
+
 def nan_with_fallback():
-    config = pipeline("nan_fallback", SWAP_BASE,
-                      [("    seed: 1\n", "    seed: 1\n    inject_nan: { channel: a1, start_s: 1.0, duration_s: 0.01 }\n")])
-    h5 = os.path.join(TMP, "nan_fallback.h5")
-    rc, out, summary = lode_run(config, "--duration", "2", "--record", h5)
+    rc, out, summary, h5 = swap_run_with("nan_fallback", "inject_nan: { channel: a1, start_s: 1.0, duration_s: 0.01 }", 2)
     expect(rc == 0, f"exit {rc}, expected 0 (the fallback takes over):\n{out[-1500:]}")
     trips = [e for e in summary["events"] if e["kind"] == "health"]
     expect(trips, "no health event")
     at = trips[0]["cycle"]
     expect(5000 <= at <= 5001, f"trip at cycle {at}, expected 5000")
     expect("kf_coast" in trips[0]["text"], trips[0]["text"])
-    cycles, values, _ = recorded(h5, "stage.truth")
-    after = cycles >= 5000
-    drift = float(np.max(np.abs(values["x"][after])))
+    drift, cycles = max_abs_truth_x(h5, 5000)
     # The sine reference is 50 um; 50 cycles of coasting at 5 kHz must not add more than 10 um.
     expect(drift < 60e-6, f"|x| reached {drift * 1e6:.1f} um after the trip")
     return dict(detected=f"{at - 5000} cycles (same cycle)", safe="n/a (fallback took over)", event="health",
-                recording=f"{len(cycles)} cycles, max |x| {drift * 1e6:.1f} um after the trip")
+                recording=f"{cycles} cycles, max |x| {drift * 1e6:.1f} um after the trip")
 
 
 def fallback_coasting_away():
-    config = pipeline("coast_away", SWAP_BASE,
-                      [("    seed: 1\n", "    seed: 1\n    inject_nan: { channel: a1, start_s: 1.0, duration_s: 5.0 }\n")])
-    h5 = os.path.join(TMP, "coast_away.h5")
-    rc, out, summary = lode_run(config, "--duration", "6", "--record", h5)
+    rc, out, summary, h5 = swap_run_with("coast_away", "inject_nan: { channel: a1, start_s: 1.0, duration_s: 5.0 }", 6)
     expect(rc == 1, f"exit {rc}, expected 1 (the envelope bounds the coast):\n{out[-1500:]}")
     at = fault_cycle(summary)
     fault = events_of(summary, "fault")[0]["text"]
     expect("envelope: glsdc.pose has been invalid" in fault, fault)
     # max_invalid_s: 0.05 at 5 kHz = 250 cycles of coasting allowed; the fault is at the 251st.
     expect(at is not None and at - 5000 <= 251, f"fault at cycle {at}, more than 251 cycles after the NaN")
-    cycles, values, _ = recorded(h5, "stage.truth")
-    drift = float(np.max(np.abs(values["x"][cycles >= 5000])))
+    drift, _ = max_abs_truth_x(h5, 5000)
     expect(drift < 100e-6, f"the stage drifted {drift * 1e6:.1f} um before the fault")
     return dict(detected=f"{at - 5000} cycles (<= 251 = max_invalid_s)", safe="driven safe", event="fault (envelope)",
                 recording=f"max |x| {drift * 1e6:.1f} um before the fault")
 
 
 def stuck_sensor():
-    config = pipeline("stuck", SWAP_BASE,
-                      [("    seed: 1\n", "    seed: 1\n    inject_stuck: { channel: a1, start_s: 1.0, duration_s: 2.0, value_v: 0.0 }\n")])
-    h5 = os.path.join(TMP, "stuck.h5")
-    rc, out, summary = lode_run(config, "--duration", "2", "--record", h5)
+    rc, out, summary, h5 = swap_run_with(
+        "stuck", "inject_stuck: { channel: a1, start_s: 1.0, duration_s: 2.0, value_v: 0.0 }", 2)
     trips = [e for e in summary["events"] if e["kind"] == "health"]
     expect(trips, f"no health trip (exit {rc}):\n{out[-1500:]}")
     at = trips[0]["cycle"]
     # The innovation test averages NIS over nis_window = 500 cycles: a stuck channel is caught
     # within that window.
     expect(5000 <= at <= 5500, f"trip at cycle {at}, outside the 500-cycle NIS window after the fault")
-    cycles, values, _ = recorded(h5, "stage.truth")
-    worst = float(np.max(np.abs(values["x"])))
+    worst, _ = max_abs_truth_x(h5)
     expect(worst < 0.080, f"the stage left its travel: |x| = {worst:.3f} m")
     fault = fault_cycle(summary)
     return dict(detected=f"{at - 5000} cycles (<= 500, NIS window)",
