@@ -167,6 +167,12 @@ struct Family {
   std::vector<Range> ranges;
 };
 
+/// Offset in the arena of an output that load-time validation guarantees to exist.
+inline std::size_t output_offset(const BlockEntry& b, const std::string& port) {
+  const DeclaredOutput* o = b.output(port);
+  return o ? o->offset : 0;
+}
+
 }  // namespace pipeline_detail
 
 struct Pipeline::Impl {
