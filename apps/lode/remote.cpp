@@ -490,10 +490,11 @@ std::optional<std::string> target_pipeline(const Args& args, dds::Client& client
     return p;
   }
   // Discovery is gradual: the first pipeline heard of is not the only one live until no other
-  // has appeared for a while. Take the set once it has held still for a second, so that a
-  // command never goes to the one that happened to answer first.
+  // has appeared for a while. Take the set once it has held still for two seconds, so that a
+  // command never goes to the one that happened to answer first (2 s: a loaded host can take
+  // over a second to discover the next participant).
   auto pipelines = client.pipelines(wait_option(args, 3.0));
-  for (auto settled = Clock::now(); !pipelines.empty() && Clock::now() - settled < std::chrono::seconds(1);) {
+  for (auto settled = Clock::now(); !pipelines.empty() && Clock::now() - settled < std::chrono::seconds(2);) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
     auto now_live = client.pipelines(std::chrono::milliseconds(0));
     if (now_live != pipelines) {
