@@ -96,19 +96,38 @@ std::string pid_text(pid_t pid) { return pid > 0 ? "pid " + std::to_string(pid) 
 }  // namespace
 
 // ---------------------------------------------------------------------------------------
-std::string local_control_dir() {
-  const char* xdg = std::getenv("XDG_RUNTIME_DIR");
-  if (xdg && *xdg) return std::string(xdg) + "/lode";
+RuntimeDirInputs runtime_dir_inputs_from_environment() {
+  RuntimeDirInputs in;
+  if (const char* xdg = std::getenv("XDG_RUNTIME_DIR")) in.xdg_runtime_dir = xdg;
+  if (const char* home = std::getenv("HOME")) in.home = home;
+  in.uid = ::geteuid();
+  return in;
+}
+
+std::string local_control_dir(const RuntimeDirInputs& in) {
+  if (!in.xdg_runtime_dir.empty()) return in.xdg_runtime_dir + "/lode";
+  const auto ours = [&](const std::string& path, bool want_private) {
+    struct stat st {};
+    return ::lstat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode) && st.st_uid == in.uid &&
+           (!want_private || (st.st_mode & 077) == 0);
+  };
   // Without XDG_RUNTIME_DIR (a cron job, a service without a session), systemd-logind's
   // per-user directory is still the right place when it exists and is ours: unlike a name in
-  // /tmp, no other user can create it first and lock us out.
-  const std::string user_run = "/run/user/" + std::to_string(::geteuid());
+  // /tmp, no other user can create it first.
+  const std::string user_run = in.run_user_root + "/" + std::to_string(in.uid);
+  if (ours(user_run, true)) return user_run + "/lode";
+  // /tmp is shared: anyone may create lode-<uid> (or a symlink of that name) before us. Such a
+  // name is neither used nor allowed to lock the user out; the home directory, which only the
+  // user can write, takes over. A lode-<uid> of our own with a loose mode stays the answer, so
+  // the server can say how to fix it.
+  const std::string in_tmp = in.tmp + "/lode-" + std::to_string(in.uid);
   struct stat st {};
-  if (::lstat(user_run.c_str(), &st) == 0 && S_ISDIR(st.st_mode) && st.st_uid == ::geteuid() &&
-      (st.st_mode & 077) == 0)
-    return user_run + "/lode";
-  return "/tmp/lode-" + std::to_string(::geteuid());
+  const bool absent = ::lstat(in_tmp.c_str(), &st) != 0 && errno == ENOENT;
+  if (absent || ours(in_tmp, false) || in.home.empty()) return in_tmp;
+  return in.home + "/.lode/run";
 }
+
+std::string local_control_dir() { return local_control_dir(runtime_dir_inputs_from_environment()); }
 
 std::string local_control_socket(const std::string& pipeline) { return local_control_dir() + "/" + pipeline + ".sock"; }
 

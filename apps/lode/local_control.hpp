@@ -3,8 +3,8 @@
 // Unix-domain stream socket, so `lode set` / `lode swap` work on the RT host without Fast DDS.
 //
 // Where: $XDG_RUNTIME_DIR/lode/<pipeline>.sock; without XDG_RUNTIME_DIR, /run/user/<uid>/lode
-// when that directory is the user's, else /tmp/lode-<uid>. The directory is 0700 and owned by
-// the user, the socket 0600: the file system is the authentication (only the user who started the run, and root, can
+// when that directory is the user's, else /tmp/lode-<uid> unless another user holds that name,
+// then $HOME/.lode/run. The directory is 0700 and owned by the user, the socket 0600: the file system is the authentication (only the user who started the run, and root, can
 // connect). Every request is logged with the peer's pid and uid (SO_PEERCRED).
 //
 // Wire format (local_wire.hpp): one flat JSON object per line each way.
@@ -33,7 +33,21 @@
 
 namespace lode::cli {
 
-/// $XDG_RUNTIME_DIR/lode or /tmp/lode-<uid> (not created).
+/// What picks the runtime directory: the environment and the places looked at, so a test can
+/// point them at a scratch folder.
+struct RuntimeDirInputs {
+  std::string xdg_runtime_dir;           ///< "" = unset
+  std::string run_user_root = "/run/user";
+  std::string tmp = "/tmp";
+  std::string home;                      ///< "" = unset
+  uid_t uid = 0;
+};
+RuntimeDirInputs runtime_dir_inputs_from_environment();
+/// $XDG_RUNTIME_DIR/lode, else <run_user_root>/<uid>/lode when that is the user's private
+/// directory, else <tmp>/lode-<uid> when it is absent or the user's, else <home>/.lode/run:
+/// a name in /tmp that another user created first (a directory or a symlink) must not lock
+/// the user out, nor be used. Not created; the server checks it is ours and 0700.
+std::string local_control_dir(const RuntimeDirInputs& inputs);
 std::string local_control_dir();
 /// The socket of pipeline `name` in local_control_dir().
 std::string local_control_socket(const std::string& pipeline);

@@ -468,6 +468,57 @@ TEST_F(LocalControlServerTest, IdleClientsAreDroppedAndABusyServerSaysSo) {
   EXPECT_EQ(server_->stats().idle_closed, 2u);
 }
 
+// Without XDG_RUNTIME_DIR or a /run/user directory, the socket goes to /tmp/lode-<uid>. /tmp
+// is shared: another local user can create that name first (as a directory of theirs or a
+// symlink to one). The run must neither use it nor be locked out.
+TEST_F(LocalControlServerTest, ANameInTmpThatAnotherUserTookIsNotUsedAndDoesNotLockUsOut) {
+  RuntimeDirInputs in;
+  in.run_user_root = root_ + "/run-user";  // absent: a host without logind's directory
+  in.tmp = root_ + "/tmp";
+  in.home = root_ + "/home";
+  in.uid = ::geteuid();
+  ASSERT_EQ(::mkdir(in.tmp.c_str(), 01777), 0);
+  ASSERT_EQ(::mkdir(in.home.c_str(), 0700), 0);
+  const std::string in_tmp = in.tmp + "/lode-" + std::to_string(in.uid);
+
+  // Nobody took it: /tmp/lode-<uid>, created private by the server.
+  EXPECT_EQ(local_control_dir(in), in_tmp);
+
+  // Somebody else's symlink of that name (any user can make one; its owner is not us).
+  ASSERT_EQ(::mkdir((root_ + "/elsewhere").c_str(), 0777), 0);
+  ASSERT_EQ(::symlink((root_ + "/elsewhere").c_str(), in_tmp.c_str()), 0);
+  EXPECT_EQ(local_control_dir(in), in.home + "/.lode/run") << "a symlink in /tmp must not be followed";
+  ASSERT_EQ(::unlink(in_tmp.c_str()), 0);
+
+  // Another user's directory of that name (needs root to stage: chown to nobody).
+  if (::geteuid() == 0) {
+    ASSERT_EQ(::mkdir(in_tmp.c_str(), 0700), 0);
+    ASSERT_EQ(::chown(in_tmp.c_str(), 65534, 65534), 0);
+    EXPECT_EQ(local_control_dir(in), in.home + "/.lode/run");
+    // The server starts there, private, and a client computing the same inputs finds it.
+    options_.dir = local_control_dir(in);
+    start();
+    struct stat st {};
+    ASSERT_EQ(::lstat(options_.dir.c_str(), &st), 0);
+    EXPECT_EQ(st.st_uid, ::geteuid());
+    EXPECT_EQ(st.st_mode & 0777, 0700u);
+    ControlRequest r;
+    r.kind = "status";
+    auto reply = local_send(local_control_dir(in) + "/lc_unit.sock", r, milliseconds(3000));
+    ASSERT_TRUE(reply) << reply.error();
+    EXPECT_TRUE(reply->ok);
+  }
+
+  // Our own /tmp/lode-<uid> with a loose mode stays the answer: the server then says how to fix it.
+  std::system(("rm -rf " + in_tmp).c_str());
+  ASSERT_EQ(::mkdir(in_tmp.c_str(), 0755), 0);
+  EXPECT_EQ(local_control_dir(in), in_tmp);
+
+  // XDG_RUNTIME_DIR, when set, wins over everything.
+  in.xdg_runtime_dir = root_ + "/xdg";
+  EXPECT_EQ(local_control_dir(in), root_ + "/xdg/lode");
+}
+
 TEST(LocalControlClient, TimesOutWhenNobodyAnswers) {
   char tmpl[] = "/tmp/lode-lc-mute-XXXXXX";
   ASSERT_NE(::mkdtemp(tmpl), nullptr);
