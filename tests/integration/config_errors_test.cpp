@@ -10,6 +10,7 @@
 
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
+#include "lode/testing/scratch_dir.hpp"
 
 namespace {
 
@@ -199,7 +200,7 @@ INSTANTIATE_TEST_SUITE_P(Table, ConfigErrors, ::testing::ValuesIn(cases()),
                          [](const auto& case_info) { return std::string(case_info.param.name); });
 
 TEST(ConfigErrorsCli, LodeCheckExitsTwoWithLocation) {
-  const std::string path = ::testing::TempDir() + "/lode_bad_config.yaml";
+  const std::string path = lode::testing::scratch_path("bad_config.yaml");
   {
     std::ofstream f(path);
     f << replace(kValid, "plant: platen", "plant: platten");

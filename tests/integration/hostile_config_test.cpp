@@ -16,6 +16,7 @@
 #include <string>
 
 #include "lode/testing/require.hpp"
+#include "lode/testing/scratch_dir.hpp"
 
 namespace {
 
@@ -41,7 +42,7 @@ struct Outcome {
 Outcome run_lode(const std::string& args) {
   // A runtime directory of its own: a `lode run` here must not meet another run's sockets.
   static const std::string runtime = [] {
-    const std::string dir = ::testing::TempDir() + "/lode_hostile_run_" + std::to_string(::getpid());
+    const std::string dir = lode::testing::scratch_path("run");
     ::mkdir(dir.c_str(), 0700);
     return dir;
   }();
@@ -61,9 +62,7 @@ Outcome run_lode(const std::string& args) {
   return o;
 }
 
-std::string temp_path(const std::string& name) {
-  return ::testing::TempDir() + "/lode_hostile_" + std::to_string(::getpid()) + "_" + name;
-}
+std::string temp_path(const std::string& name) { return lode::testing::scratch_path(name); }
 
 std::string write_file(const std::string& name, const std::string& text) {
   const std::string path = temp_path(name);

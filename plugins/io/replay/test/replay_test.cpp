@@ -14,16 +14,12 @@
 
 #include "lode/record/hdf5_recorder.hpp"
 #include "lode/testing/harness.hpp"
+#include "lode/testing/scratch_dir.hpp"
 
 namespace {
 
-namespace fs = std::filesystem;
 
-std::string temp_file(const std::string& name) {
-  const auto dir = fs::temp_directory_path() / ("lode_io_replay_test_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  return (dir / name).string();
-}
+std::string temp_file(const std::string& name) { return lode::testing::scratch_path(name); }
 
 /// A recording of board "stage" (signals a/b in V, truth x in m) and an estimator output,
 /// for cycles 0 .. n-1, skipping cycle `skip` in stage.signals when skip >= 0.
