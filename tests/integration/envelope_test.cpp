@@ -9,6 +9,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -174,6 +175,69 @@ TEST(Envelope, ConfigurationErrorsAreLocated) {
     EXPECT_NE(r.diagnostics.find(message), std::string::npos) << entry << "\n" << r.diagnostics;
     EXPECT_NE(r.diagnostics.find("envelope.yaml:"), std::string::npos) << r.diagnostics;
   }
+}
+
+// Every shipped pipeline says where its stage may be. A simulated one runs its whole length
+// inside its envelope (the bounds match the stage, not a tighter guess that trips on a good
+// run), and a reference beyond the stage's travel, the typo a user makes, is stopped by it.
+struct Shipped {
+  const char* file;
+  const char* step_from = nullptr;  ///< text of the first reference step
+  const char* step_to = nullptr;    ///< the same step beyond the travel
+};
+
+class ShippedEnvelope : public ::testing::TestWithParam<Shipped> {};
+
+TEST_P(ShippedEnvelope, TheNominalRunStaysInsideAndAReferenceBeyondTheTravelFaults) {
+  LODE_REQUIRE_PLUGINS("io.sim");
+  const Shipped& c = GetParam();
+  const std::string text = read_config(c.file);
+  lode::PluginRegistry registry;
+  lode::Diagnostics diag;
+  auto p = lode::Pipeline::load_text(text, c.file, registry, diag);
+  if (!p && diag.format().find("no plugin") != std::string::npos) GTEST_SKIP() << diag.format();
+  ASSERT_TRUE(p) << diag.format();
+  ASSERT_TRUE(p->default_duration_s()) << c.file << " has no duration_s";
+  const auto cycles = static_cast<std::uint64_t>(std::llround(*p->default_duration_s() * p->rate_hz()));
+  p.reset();
+
+  const Outcome nominal = run(text, cycles);
+  ASSERT_TRUE(nominal.loaded) << nominal.diagnostics;
+  EXPECT_EQ(nominal.fault_cycle, kNever) << c.file << ": " << nominal.fault;
+
+  if (c.step_from == nullptr) return;
+  const Outcome typo = run(replace(text, c.step_from, c.step_to), cycles);
+  ASSERT_TRUE(typo.loaded) << typo.diagnostics;
+  EXPECT_NE(typo.fault_cycle, kNever) << c.file << ": a reference beyond the travel ran to the end";
+  EXPECT_TRUE(typo.envelope) << typo.fault;
+  std::printf("%-26s %llu cycles inside; reference beyond the travel: cycle %llu, %s\n", c.file,
+              static_cast<unsigned long long>(cycles), static_cast<unsigned long long>(typo.fault_cycle),
+              typo.fault.c_str());
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Config, ShippedEnvelope,
+    ::testing::Values(Shipped{"kawato_planar.yaml", "value: [100.0e-6, 0.0, 0.0]", "value: [0.2, 0.0, 0.0]"},
+                      Shipped{"kawato_planar_swap.yaml"},
+                      Shipped{"kawato_planar_true_field.yaml", "value: [100.0e-6, 0.0, 0.0]", "value: [0.2, 0.0, 0.0]"},
+                      Shipped{"maglev6_hybrid.yaml", "value: [20.0e-6, 0, 0, 0, 0, 0]", "value: [0.2, 0, 0, 0, 0, 0]"},
+                      Shipped{"npo_velocity.yaml", "value: [500.0e-9, 250.0e-9,", "value: [1.0e-3, 250.0e-9,"},
+                      Shipped{"suspension_ukf.yaml", "value: [0.022, 0.0, 0.3320]", "value: [0.5, 0.0, 0.3320]"}, Shipped{"encoder_ekf.yaml"}),
+    [](const auto& shipped) {
+      std::string name = shipped.param.file;
+      return name.substr(0, name.find('.'));
+    });
+
+TEST(Envelope, EveryShippedPipelineDeclaresOne) {
+  // Including the hardware ones, which this test cannot run: the text must have the section.
+  std::size_t seen = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(LODE_SOURCE_DIR "/config")) {
+    if (entry.path().extension() != ".yaml") continue;
+    ++seen;
+    const std::string text = read_file(entry.path().string());
+    EXPECT_NE(text.find("\nenvelope:"), std::string::npos) << entry.path() << " declares no envelope";
+  }
+  EXPECT_GE(seen, 9u);
 }
 
 }  // namespace
