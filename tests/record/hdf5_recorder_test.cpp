@@ -3,6 +3,7 @@
 #include "lode/record/hdf5_recorder.hpp"
 
 #include <gtest/gtest.h>
+#include <hdf5.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -241,6 +242,51 @@ TEST(Hdf5RecorderTest, DestructorWritesEverythingAndCloses) {
   EXPECT_EQ(recording->series[0].values.back(), 1499.0);
   ASSERT_EQ(recording->events.size(), 1U);
   EXPECT_EQ(recording->events[0].kind, "stop");
+  fs::remove_all(fs::path(path).parent_path());
+}
+
+TEST(Hdf5RecorderTest, RowsReservedButNeverWrittenAreNotReadAsData) {
+  // A crash between the extent's growth and the chunk's write, or a full disk, leaves rows
+  // the file has room for but no data in. They must not read as samples (HDF5's default fill,
+  // 0.0 at cycle 0, would look like a stage at the origin).
+  const std::string path = scratch_path("reserved.h5");
+  {
+    auto recorder = Recorder::create(path, "lode run");
+    ASSERT_TRUE(recorder) << recorder.error();
+    auto series = (*recorder)->add_series({"s", "", "signal", {"v"}, {"m"}, 1000.0, 1000.0, 1});
+    ASSERT_TRUE(series) << series.error();
+    for (std::uint64_t cycle = 0; cycle < 100; ++cycle) {
+      const double value = 1.0 + static_cast<double>(cycle);
+      (*recorder)->append(*series, cycle, static_cast<std::int64_t>(cycle) * 1'000'000, 0, &value);
+    }
+    (*recorder)->add_event(3, 0, "note", "kept");
+    ASSERT_TRUE((*recorder)->close());
+  }
+  // What the dying writer left: every column, and the event columns, 40 rows longer.
+  {
+    const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+    ASSERT_GE(file, 0);
+    for (const char* column : {"/signals/s/cycle", "/signals/s/stamp_ns", "/signals/s/captured_ns",
+                               "/signals/s/time_s", "/signals/s/v", "/events/cycle", "/events/stamp_ns",
+                               "/events/kind", "/events/text"}) {
+      const hid_t dataset = H5Dopen2(file, column, H5P_DEFAULT);
+      ASSERT_GE(dataset, 0) << column;
+      const hsize_t grown = std::string(column).rfind("/events", 0) == 0 ? 41 : 140;
+      ASSERT_GE(H5Dset_extent(dataset, &grown), 0) << column;
+      H5Dclose(dataset);
+    }
+    H5Fclose(file);
+  }
+  auto recording = read_recording(path);
+  ASSERT_TRUE(recording) << recording.error();
+  ASSERT_EQ(recording->series.size(), 1U);
+  EXPECT_EQ(recording->series[0].rows(), 100U);
+  EXPECT_EQ(recording->series[0].values.back(), 100.0);
+  EXPECT_EQ(recording->events.size(), 1U);
+  std::string warnings;
+  for (const auto& w : recording->warnings) warnings += w + "\n";
+  EXPECT_NE(warnings.find("rows 100 to 139 were reserved but never written"), std::string::npos) << warnings;
+  EXPECT_NE(warnings.find("/events: rows 1 to 40 were reserved but never written"), std::string::npos) << warnings;
   fs::remove_all(fs::path(path).parent_path());
 }
 

@@ -8,6 +8,7 @@
 #include <array>
 #include <cmath>
 #include <ctime>
+#include <limits>
 #include <set>
 #include <utility>
 
@@ -174,13 +175,24 @@ Status update_counter_attribute(hid_t object, const char* key, std::uint64_t val
   return {};
 }
 
-/// An empty 1-D dataset that grows without limit, chunked by `chunk_rows`.
-Handle create_column(hid_t group, const std::string& name, hid_t file_type, hsize_t chunk_rows) {
+/// What a row reads as where the file has no data for it: space the writer reserved (the
+/// extent grew) but whose chunk never reached the disk, after a crash or a full disk. Chosen
+/// so such rows cannot pass for data: no cycle is UINT64_MAX, and a value column reads NaN,
+/// not a plausible 0.0.
+constexpr std::uint64_t kMissingCycle = ~std::uint64_t{0};
+constexpr std::int64_t kMissingStamp = std::numeric_limits<std::int64_t>::min();
+constexpr double kMissingValue = std::numeric_limits<double>::quiet_NaN();
+
+/// An empty 1-D dataset that grows without limit, chunked by `chunk_rows`; `fill` (of
+/// `fill_type`, in memory) is what unwritten rows read as (nullptr: HDF5's default).
+Handle create_column(hid_t group, const std::string& name, hid_t file_type, hsize_t chunk_rows,
+                     hid_t fill_type = -1, const void* fill = nullptr) {
   const hsize_t initial = 0;
   const hsize_t unlimited = H5S_UNLIMITED;
   Handle space(H5Screate_simple(1, &initial, &unlimited));
   Handle dcpl(H5Pcreate(H5P_DATASET_CREATE));
   H5Pset_chunk(dcpl.get(), 1, &chunk_rows);
+  if (fill != nullptr) H5Pset_fill_value(dcpl.get(), fill_type, fill);
   Handle lcpl = utf8_link_properties();
   return Handle(H5Dcreate2(group, name.c_str(), file_type, space.get(), lcpl.get(), dcpl.get(), H5P_DEFAULT));
 }
@@ -283,6 +295,12 @@ struct Recorder::Impl {
     if (!ok) {
       s.broken = true;
       fail("cannot write " + std::to_string(count) + " rows of /signals/" + s.info.name + ": " + hdf5_message());
+      // Give back the rows this write reserved, so every column ends at the last row written
+      // (best effort: on a full disk the shrink itself may not reach the file, and then the
+      // reader drops the reserved rows by their fill values).
+      for (hid_t column : {s.cycle_column.get(), s.stamp_column.get(), s.captured_column.get(), s.time_column.get()})
+        H5Dset_extent(column, &s.rows_written);
+      for (const auto& column : s.value_columns) H5Dset_extent(column.get(), &s.rows_written);
     } else {
       s.rows_written += count;
     }
@@ -311,6 +329,8 @@ struct Recorder::Impl {
                     append_to_column(event_text.get(), events_written, count, string_type.get(), texts.data());
     if (!ok) {
       fail("cannot write " + std::to_string(count) + " rows of /events: " + hdf5_message());
+      for (hid_t column : {event_cycle.get(), event_stamp.get(), event_kind.get(), event_text.get()})
+        H5Dset_extent(column, &events_written);  // best effort, as for a series
       event_cycle.reset();  // stop writing events: the columns may now differ in length
     } else {
       events_written += count;
@@ -376,7 +396,7 @@ Expected<std::unique_ptr<Recorder>> Recorder::create(const std::string& path, co
   }
   Handle string_type = utf8_string_type();
   const hid_t events = impl->events_group.get();
-  impl->event_cycle = create_column(events, "cycle", H5T_STD_U64LE, kEventChunkRows);
+  impl->event_cycle = create_column(events, "cycle", H5T_STD_U64LE, kEventChunkRows, H5T_NATIVE_UINT64, &kMissingCycle);
   impl->event_stamp = create_column(events, "stamp_ns", H5T_STD_I64LE, kEventChunkRows);
   impl->event_kind = create_column(events, "kind", string_type.get(), kEventChunkRows);
   impl->event_text = create_column(events, "text", string_type.get(), kEventChunkRows);
@@ -462,10 +482,11 @@ Expected<int> Recorder::add_series(const SeriesInfo& info) {
       if (!status) return status;
     }
 
-    s->cycle_column = create_column(group, "cycle", H5T_STD_U64LE, s->chunk_rows);
-    s->stamp_column = create_column(group, "stamp_ns", H5T_STD_I64LE, s->chunk_rows);
-    s->captured_column = create_column(group, "captured_ns", H5T_STD_I64LE, s->chunk_rows);
-    s->time_column = create_column(group, "time_s", H5T_IEEE_F64LE, s->chunk_rows);
+    s->cycle_column = create_column(group, "cycle", H5T_STD_U64LE, s->chunk_rows, H5T_NATIVE_UINT64, &kMissingCycle);
+    s->stamp_column = create_column(group, "stamp_ns", H5T_STD_I64LE, s->chunk_rows, H5T_NATIVE_INT64, &kMissingStamp);
+    s->captured_column =
+        create_column(group, "captured_ns", H5T_STD_I64LE, s->chunk_rows, H5T_NATIVE_INT64, &kMissingStamp);
+    s->time_column = create_column(group, "time_s", H5T_IEEE_F64LE, s->chunk_rows, H5T_NATIVE_DOUBLE, &kMissingValue);
     if (!s->cycle_column.valid() || !s->stamp_column.valid() || !s->captured_column.valid() ||
         !s->time_column.valid()) {
       return Status::error("cannot create the time datasets: " + hdf5_message());
@@ -477,7 +498,7 @@ Expected<int> Recorder::add_series(const SeriesInfo& info) {
     }
     for (std::size_t i = 0; i < info.names.size(); ++i) {
       const std::string dataset = dataset_name_for(info.names[i], i);
-      Handle column = create_column(group, dataset, H5T_IEEE_F64LE, s->chunk_rows);
+      Handle column = create_column(group, dataset, H5T_IEEE_F64LE, s->chunk_rows, H5T_NATIVE_DOUBLE, &kMissingValue);
       if (!column.valid()) return Status::error("cannot create dataset '" + dataset + "': " + hdf5_message());
       for (Status status : {write_text_attribute(column.get(), "unit", info.units[i]),
                             write_text_attribute(column.get(), "name", info.names[i])}) {
@@ -762,6 +783,18 @@ Expected<SeriesData> read_series(hid_t signals, const std::string& name, std::ve
     warnings.push_back(where + "columns have between " + std::to_string(rows) + " and " + std::to_string(longest) +
                        " rows (the writer stopped during a write); read the first " + std::to_string(rows));
   }
+  // Rows the writer reserved but whose data never reached the file (a crash between the
+  // extent's and the chunk's write, a full disk) read as the fill values: cycle UINT64_MAX,
+  // stamps INT64_MIN. They end the readable part: what follows is not data.
+  for (std::size_t row = 0; row < rows; ++row) {
+    if ((*cycle)[row] == kMissingCycle || (*stamp)[row] == kMissingStamp) {
+      warnings.push_back(where + "rows " + std::to_string(row) + " to " + std::to_string(rows - 1) +
+                         " were reserved but never written (the writer stopped); read the first " +
+                         std::to_string(row));
+      rows = row;
+      break;
+    }
+  }
   cycle->resize(rows);
   stamp->resize(rows);
   captured->resize(rows);
@@ -829,6 +862,12 @@ Expected<Recording> read_recording(const std::string& path) {
         std::to_string(rows));
   }
   for (std::size_t i = 0; i < rows; ++i) {
+    if ((*cycle)[i] == kMissingCycle) {  // reserved, never written (see read_series)
+      recording.warnings.push_back("/events: rows " + std::to_string(i) + " to " + std::to_string(rows - 1) +
+                                   " were reserved but never written (the writer stopped); read the first " +
+                                   std::to_string(i));
+      break;
+    }
     recording.events.push_back({(*cycle)[i], (*stamp)[i], std::move((*kind)[i]), std::move((*text)[i])});
   }
   return recording;
