@@ -490,11 +490,15 @@ std::optional<std::string> target_pipeline(const Args& args, dds::Client& client
     return p;
   }
   // Discovery is gradual: the first pipeline heard of is not the only one live until no other
-  // has appeared for a while. Take the set once it has held still for two seconds, so that a
-  // command never goes to the one that happened to answer first (2 s: a loaded host can take
-  // over a second to discover the next participant).
+  // has appeared for a while. Take the set once this client has listened for 2.5 s (every
+  // lodestone participant announces itself each second, so each live pipeline has had two
+  // chances to be heard) and the set has held still for 2 s (a loaded host can take over a
+  // second to process an announcement). A command never goes to the one that answered first.
+  const auto listening_since = Clock::now();
   auto pipelines = client.pipelines(wait_option(args, 3.0));
-  for (auto settled = Clock::now(); !pipelines.empty() && Clock::now() - settled < std::chrono::seconds(2);) {
+  for (auto settled = Clock::now();
+       !pipelines.empty() && (Clock::now() - settled < std::chrono::seconds(2) ||
+                              Clock::now() - listening_since < std::chrono::milliseconds(2500));) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
     auto now_live = client.pipelines(std::chrono::milliseconds(0));
     if (now_live != pipelines) {

@@ -360,7 +360,7 @@ Expected<std::unique_ptr<RunServices>> RunServices::start(Pipeline& pipeline, Sc
     scheduler.add_hook(im.telemetry_tap.get());
     dds::ParticipantOptions po;
     po.domain = im.spec.domain;
-    po.name = "lode-run/" + pipeline.name() + "@" + hostname();
+    po.name = dds::pipeline_participant_name(pipeline.name(), hostname());
     po.transport = im.spec.transport;
     po.security = im.spec.security;
     auto bridge = dds::TelemetryBridge::start(pipeline, im.spec, *im.telemetry_tap, scheduler.stats(), events,

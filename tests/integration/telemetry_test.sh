@@ -135,10 +135,12 @@ commands)
     sleep 0.5
   done
   contains "both pipelines are live" "$TMP/twins.out" "twin_b"
-  # Over DDS the same refusal holds only once this client has discovered both; on a loaded
-  # host a fresh client can take longer than its settle time, so that half is not asserted.
   "$L" set observer.d >"$TMP/two_local.out" 2>&1; check_rc "two pipelines, none named (local): exit 2" 2 $?
   contains "the refusal names both (local)" "$TMP/two_local.out" "several pipelines run on this host.*twin_[ab].*twin_[ab]"
+  # Over DDS a fresh client learns both from participant discovery (each bridge's participant
+  # is named after its pipeline) before any topic matches.
+  "$L" set observer.d --dds --domain "$DOMAIN" >"$TMP/two_dds.out" 2>&1; check_rc "two pipelines, none named (DDS): exit 2" 2 $?
+  contains "the refusal names both (DDS)" "$TMP/two_dds.out" "several pipelines are live.*twin_[ab] twin_[ab]"
   "$L" set twin_b/observer.d >"$TMP/named.out" 2>&1; check_rc "named, it goes through" 0 $?
   kill -TERM $RUN_A $RUN_B; wait $RUN_A $RUN_B
   ;;

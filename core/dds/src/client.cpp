@@ -28,6 +28,7 @@
 #include <thread>
 
 #include <fastdds/dds/domain/DomainParticipant.hpp>
+#include <fastdds/dds/domain/DomainParticipantListener.hpp>
 #include <fastdds/dds/publisher/DataWriter.hpp>
 #include <fastdds/dds/publisher/Publisher.hpp>
 #include <fastdds/dds/subscriber/DataReader.hpp>
@@ -124,6 +125,33 @@ std::string topic_list(const std::vector<SignalMeta>& metas) {
   return out.empty() ? "none" : out;
 }
 
+/// Which pipelines' bridges this participant has discovered (by their participant names),
+/// as a set to poll. Participant discovery comes first; a
+/// pipeline's topics and its SignalInfo arrive later, and on a loaded host much later.
+class PipelineParticipants final : public fdds::DomainParticipantListener {
+ public:
+  void on_participant_discovery(fdds::DomainParticipant*, eprosima::fastrtps::rtps::ParticipantDiscoveryInfo&& info) override {
+    using Info = eprosima::fastrtps::rtps::ParticipantDiscoveryInfo;
+    const auto pipeline = pipeline_of_participant(info.info.m_participantName.to_string());
+    if (!pipeline) return;
+    std::lock_guard lock(mutex_);
+    if (info.status == Info::REMOVED_PARTICIPANT || info.status == Info::DROPPED_PARTICIPANT)
+      live_.erase(info.info.m_guid.guidPrefix);
+    else
+      live_[info.info.m_guid.guidPrefix] = *pipeline;
+  }
+  std::set<std::string> pipelines() const {
+    std::lock_guard lock(mutex_);
+    std::set<std::string> out;
+    for (const auto& [prefix, pipeline] : live_) out.insert(pipeline);
+    return out;
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  std::map<eprosima::fastrtps::rtps::GuidPrefix_t, std::string> live_;
+};
+
 class ClientImpl;
 
 /// Readers of one subscription, deleted (after closing the gate) when it is destroyed.
@@ -199,7 +227,7 @@ class ClientImpl final : public Client {
   }
 
   Status open(const ParticipantOptions& options) {
-    auto created = create_participant(options);
+    auto created = create_participant(options, &participants_);
     if (!created) return created.status();
     participant_ = *created;
     if (Status s = detail::register_types(participant_); !s) return s;
@@ -231,21 +259,36 @@ class ClientImpl final : public Client {
   }
 
   std::vector<std::string> pipelines(std::chrono::milliseconds wait) override {
-    // Each running pipeline has one SignalInfo writer. Once something is heard, wait (within
-    // `wait`) until every matched writer has delivered its pipeline's description: the first
+    // Each running pipeline's bridge is a participant named after it, and has one SignalInfo
+    // writer. Either tells us it is live. Once something is heard, wait (within `wait`) until
+    // every matched SignalInfo writer has delivered its pipeline's description: the first
     // pipeline heard of is not the only one live just because its data came first.
     const auto deadline = Clock::now() + wait;
-    std::set<std::string> names;
-    for (const auto& meta : signals(wait)) names.insert(meta.pipeline);
-    while (!names.empty() && Clock::now() < deadline) {
-      fdds::SubscriptionMatchedStatus matched;
-      if (info_reader_->get_subscription_matched_status(matched) != ReturnCode_t::RETCODE_OK ||
-          static_cast<std::size_t>(matched.current_count) <= names.size())
-        break;
+    const auto heard = [this] {
+      std::set<std::string> names = participants_.pipelines();
+      std::lock_guard lock(signals_mutex_);
+      for (const auto& [topic, meta] : signals_) names.insert(meta.pipeline);
+      return names;
+    };
+    std::set<std::string> names = heard();
+    while (Clock::now() < deadline) {
+      if (!names.empty()) {
+        fdds::SubscriptionMatchedStatus matched;
+        std::size_t described = 0;
+        {
+          std::lock_guard lock(signals_mutex_);
+          std::set<std::string> with_info;
+          for (const auto& [topic, meta] : signals_) with_info.insert(meta.pipeline);
+          described = with_info.size();
+        }
+        if (info_reader_->get_subscription_matched_status(matched) != ReturnCode_t::RETCODE_OK ||
+            static_cast<std::size_t>(matched.current_count) <= described)
+          break;
+      }
       std::unique_lock lock(signals_mutex_);
       signals_changed_.wait_for(lock, std::chrono::milliseconds(50));
-      names.clear();
-      for (const auto& [topic, meta] : signals_) names.insert(meta.pipeline);
+      lock.unlock();
+      names = heard();
     }
     return {names.begin(), names.end()};
   }
@@ -587,6 +630,7 @@ class ClientImpl final : public Client {
   }
 
   std::string name_;
+  PipelineParticipants participants_;  // outlives participant_ (deleted in the destructor's body)
   fdds::DomainParticipant* participant_ = nullptr;
   fdds::Publisher* publisher_ = nullptr;
   fdds::Subscriber* subscriber_ = nullptr;

@@ -2,6 +2,7 @@
 // Only this library includes Fast DDS headers; the core and the plugins never do.
 #pragma once
 
+#include <optional>
 #include <string>
 
 #include "lode/status.hpp"
@@ -10,6 +11,7 @@
 namespace eprosima::fastdds::dds {
 class DomainParticipant;
 class DomainParticipantQos;
+class DomainParticipantListener;
 }  // namespace eprosima::fastdds::dds
 
 namespace lode::dds {
@@ -26,8 +28,17 @@ struct ParticipantOptions {
 Status configure_participant_qos(const ParticipantOptions& options,
                                  eprosima::fastdds::dds::DomainParticipantQos& qos);
 
-/// Create a participant (the caller deletes it with delete_participant()).
-Expected<eprosima::fastdds::dds::DomainParticipant*> create_participant(const ParticipantOptions& options);
+/// The participant name of `lode run`'s bridge: "lode-run/<pipeline>@<host>". Discovery
+/// announces it before any topic matches, so a client learns which pipelines are live from
+/// the participants it has discovered, well before their topics' data arrive.
+std::string pipeline_participant_name(const std::string& pipeline, const std::string& host);
+/// The pipeline of a participant named by pipeline_participant_name(), else nullopt.
+std::optional<std::string> pipeline_of_participant(const std::string& participant_name);
+
+/// Create a participant (the caller deletes it with delete_participant()). `listener`, when
+/// given, hears participant discovery from creation on.
+Expected<eprosima::fastdds::dds::DomainParticipant*> create_participant(
+    const ParticipantOptions& options, eprosima::fastdds::dds::DomainParticipantListener* listener = nullptr);
 void delete_participant(eprosima::fastdds::dds::DomainParticipant* participant);
 
 /// Read defaults for command-line clients: LODE_DDS_DOMAIN, LODE_DDS_TRANSPORT
