@@ -15,6 +15,12 @@ function(lode_add_fuzz_test)
   if(NOT LODE_BUILD_TESTS)
     return()
   endif()
+  # A fuzzer that links the project's libraries (LINK) is an ASan process: it cannot load
+  # libraries built with another sanitizer (ThreadSanitizer's run-time refuses to share one).
+  # The fuzzers belong to the plain and the ASan builds; a TSan build has nothing to add.
+  if(F_LINK AND "thread" IN_LIST LODE_SANITIZE)
+    return()
+  endif()
   if(NOT LODE_CLANGXX)
     lode_add_unavailable_test(NAME ${F_NAME}
       WHY "clang++ not found (apt-get install clang libclang-rt-14-dev): libFuzzer cannot build ${F_TARGET}")

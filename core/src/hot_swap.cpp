@@ -344,6 +344,7 @@ void HotSwap::post(Prepared& prepared) {
   state_.store(kPosted, std::memory_order_release);
 }
 
+bool HotSwap::posted() const { return state_.load(std::memory_order_acquire) != kIdle; }
 bool HotSwap::done() const { return state_.load(std::memory_order_acquire) == kDone; }
 
 namespace {

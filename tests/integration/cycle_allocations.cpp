@@ -30,24 +30,27 @@ class AllocationProbe final : public CycleHook {
   }
   void after_cycle(const Tick& tick) noexcept override {
     if (opening_) return;
-    last_ = thread_allocation_count();
+    last_.store(thread_allocation_count(), std::memory_order_relaxed);
     last_cycle_.store(tick.cycle, std::memory_order_release);
-    ++cycles_;
+    cycles_.fetch_add(1, std::memory_order_release);
   }
   static AllocationProbe opening() { return AllocationProbe(true); }
   static AllocationProbe closing() { return AllocationProbe(false); }
 
   [[nodiscard]] bool started() const { return started_; }
   [[nodiscard]] std::size_t first() const { return first_; }
-  [[nodiscard]] std::size_t last() const { return last_; }
-  [[nodiscard]] std::uint64_t cycles() const { return cycles_; }
+  [[nodiscard]] std::size_t last() const { return last_.load(std::memory_order_relaxed); }
+  // Read by the idle callback, which under the real clock runs on the main thread.
+  [[nodiscard]] std::uint64_t cycles() const { return cycles_.load(std::memory_order_acquire); }
 
  private:
   explicit AllocationProbe(bool opening) : opening_(opening) {}
   bool opening_;
   std::atomic<bool> started_{false};
-  std::size_t first_ = 0, last_ = 0;
-  std::uint64_t first_cycle_ = 0, cycles_ = 0;
+  std::size_t first_ = 0;
+  std::atomic<std::size_t> last_{0};
+  std::uint64_t first_cycle_ = 0;
+  std::atomic<std::uint64_t> cycles_{0};
   std::atomic<std::uint64_t> last_cycle_{0};
 };
 

@@ -275,9 +275,14 @@ TEST(HotSwap, ASwapPendingWhenThePipelineStopsIsWithdrawnWithTheReason) {
   lode::SwapReport report;
   // No cycle runs: the request stays posted until the "RT thread" is declared stopped.
   std::thread caller([&] { report = rig.swapper->swap(req); });
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  // Stop once the request is posted: stopping while it is still being prepared (loading the
+  // plugin can take longer than any fixed wait on a loaded or instrumented build) would test
+  // the other path, a swap into a pipeline that is not running.
+  for (int i = 0; i < 20000 && !rig.swapper->posted(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  const bool was_posted = rig.swapper->posted();
   rig.swapper->set_running(false);
   caller.join();
+  ASSERT_TRUE(was_posted) << "the swap was never posted within 20 s";
   EXPECT_FALSE(report.ok);
   EXPECT_NE(report.message.find("the pipeline stopped before the exchange"), std::string::npos) << report.message;
   EXPECT_EQ(rig.pipeline->plugin_of("kf"), "estimator.kalman");

@@ -103,6 +103,8 @@ class HotSwap final : public CycleHook {
   using PreparedPtr = std::unique_ptr<Prepared, PreparedDeleter>;
   Expected<PreparedPtr> prepare(const SwapRequest& request);
   void post(Prepared& prepared);
+  /// A prepared swap is posted and waits for a cycle boundary (or has not been finished yet).
+  [[nodiscard]] bool posted() const;
   [[nodiscard]] bool done() const;
   SwapReport finish(PreparedPtr prepared);
   //@}
