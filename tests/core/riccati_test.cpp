@@ -123,7 +123,8 @@ struct Problem {
   bool slicot_inaccurate = false;  ///< SB02OD's error explains the whole disagreement
 };
 
-/// Seed-003 integrator-augmented design model (spec §1.5, §2.2): state [pos(3), int(3), vel(3)],
+/// Silva-Rivas & Kim (2013) integrator-augmented design model (eqs. 14-19, with the surrogate B of
+/// plant.maglev6): state [pos(3), int(3), vel(3)],
 /// ZOH of pos'' = K_pos pos + B_acc u, integrator z_{k+1} = z_k + T pos_k.
 void seed003_design(const Matrix& acceleration_from_position, const Matrix& b_acc, double T, Matrix& A, Matrix& B) {
   Matrix Ac = Matrix::Zero(6, 6);
@@ -161,7 +162,7 @@ std::vector<Problem> problems() {
     p.B << T * T / 2, T;
     out.push_back(p);
   }
-  {  // 2. Seed-000 CA Kalman axis as the dual DARE: r = 2.2e-10 m^2, q = 100 m^2/s^6, 800 Hz.
+  {  // 2. Kawato (2005) CA Kalman axis as the dual DARE: r = 2.2e-10 m^2, q = 100 m^2/s^6, 800 Hz.
     const double T = 1.0 / 800.0;
     Matrix phi(3, 3);
     phi << 1, T, T * T / 2, 0, 1, T, 0, 0, 1;
@@ -169,22 +170,22 @@ std::vector<Problem> problems() {
     ups << T * T * T / 6, T * T / 2, T;
     Matrix h(1, 3);
     h << 1, 0, 0;
-    out.push_back({"seed-000 CA Kalman axis (dual)", phi.transpose(), h.transpose(), 100.0 * ups * ups.transpose(),
+    out.push_back({"Kawato CA Kalman axis (dual)", phi.transpose(), h.transpose(), 100.0 * ups * ups.transpose(),
                    Matrix::Constant(1, 1, 2.2e-10), {}, 1e-8});
   }
-  {  // 3. Seed-003 horizontal LQ: surrogate B_h,acc, Q_hor, R = I, 800 Hz.
+  {  // 3. Silva-Rivas & Kim horizontal LQ: surrogate B_h,acc, Q_hor, R = I, 800 Hz.
     Matrix b_acc(3, 3);
     b_acc << -0.554, 0.519, 12.903, 13.369, 13.55, -0.088, -209.292, 199.399, -183.1;
-    Problem p{"seed-003 horizontal LQ (9 states)", {}, {}, diagonal({1e4, 1e4, 1e4, 1e8, 1e8, 1e8, 10, 10, 10}),
+    Problem p{"maglev6 horizontal LQ (9 states)", {}, {}, diagonal({1e4, 1e4, 1e4, 1e8, 1e8, 1e8, 10, 10, 10}),
               Matrix::Identity(3, 3), {}, 1e-8};
     seed003_design(Matrix::Zero(3, 3), b_acc, 1.0 / 800.0, p.A, p.B);
     out.push_back(p);
   }
-  {  // 4. Seed-003 vertical LQ with the air-bearing springs, 1 kHz.
+  {  // 4. Silva-Rivas & Kim vertical LQ with the air-bearing springs, 1 kHz.
     Matrix b_acc(3, 3);
     b_acc << 10.571, 10.597, 22.781, -256.201, -256.513, 475.071, 360.858, -343.005, 12.837;
     const Matrix springs = -diagonal({620.0 / 1.52, 65.0 / 0.0037, 87.0 / 0.0019});
-    Problem p{"seed-003 vertical LQ (9 states, springs)", {}, {},
+    Problem p{"maglev6 vertical LQ (9 states, springs)", {}, {},
               diagonal({1e4, 1e4, 1e4, 1e9, 1e9, 1e9, 1e2, 1e2, 1e2}), Matrix::Identity(3, 3), {}, 1e-8};
     seed003_design(springs, b_acc, 1.0 / 1000.0, p.A, p.B);
     out.push_back(p);
@@ -335,7 +336,8 @@ TEST(RiccatiErrors, ExplainWhyThereIsNoSolution) {
 }
 
 TEST(RiccatiKalman, SteadyStateMatchesEstimatorKalman) {
-  // Seed-000 spec §4.3: q = 100 m^2/s^6, r = 2.2e-10 m^2 at 800 Hz: K ~ [0.1968, 17.24, 755.3].
+  // Kawato (2005) with r fitted to Tables IV/V: q = 100 m^2/s^6, r = 2.2e-10 m^2 at 800 Hz:
+  // K ~ [0.1968, 17.24, 755.3].
   const double T = 1.0 / 800.0;
   const double q = 100.0;
   const double r = 2.2e-10;

@@ -15,9 +15,9 @@
 //
 // where for Kalman -> hybrid K_old is the Kalman gain of the current prior (between the
 // steady-state gain and the gain of the hybrid's covariance it was warm-started from) and
-// K_new the hybrid's blended steady gain (eq. 25 of seed 003), and for hybrid -> Kalman K_old
-// is the blended gain and K_new = P_h H' / (H P_h H' + r) from the hybrid's exported steady
-// prior covariance P_h. The test checks (1) to rounding at every swap (this fails if the state
+// K_new the hybrid's blended steady gain (Silva-Rivas & Kim 2013, eq. 25), and for
+// hybrid -> Kalman K_old is the blended gain and K_new = P_h H' / (H P_h H' + r) from the
+// hybrid's exported steady prior covariance P_h. The test checks (1) to rounding at every swap (this fails if the state
 // is not handed over exactly) and (2) at every swap, and reports the ratios.
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// Seed 000 closed loop in simulation, through the real loader and scheduler: the default demo
+// Kawato (2005) closed loop in simulation, through the real loader and scheduler: the default demo
 // (hold, 100 um X step at 1 s, 1 mrad theta_z step at 2 s) behaves as the linear model of its
 // design predicts (kawato_reference_model.hpp, Kawato (2005) eq. 4.35-4.51), the README's
 // figures are what it gives, and configurations that are wrong in ways a glance at the
@@ -541,7 +541,7 @@ struct TraverseResult {
 };
 
 /// 150 mm in X at 50 mm/s from t = 0.2 s, closed loop; optionally a third sensor C at the
-/// platen centre (the thesis's 3-DOF experiments used three sensors, §7.3).
+/// platen centre (the thesis's 3-DOF experiments, Figs. 56-63, used three sensors).
 TraverseResult traverse(bool third_sensor) {
   YAML::Node root = YAML::Load(read_file(kConfig));
   YAML::Node ramp;
@@ -583,7 +583,7 @@ TraverseResult traverse(bool third_sensor) {
 }
 
 TEST(KawatoPlanar, TraverseThreePitchesWithoutCycleSlip) {
-  // Kawato (2005) §IV-B: unrestricted range by continuous tracking. A cycle slip would leave
+  // Kawato (2005) claims unrestricted range by continuous tracking. A cycle slip would leave
   // the estimate a whole pitch (50.8 mm) away from the truth; "no slip" = never a quarter pitch.
   const double pitch = 0.0508;
   const TraverseResult r = traverse(false);

@@ -25,7 +25,7 @@
 
 namespace kawato_model {
 
-/// One axis of the design: Kawato (2005) eq. 4.44-4.51 and the Kalman q of §4.4 (eq. 4.41).
+/// One axis of the design: Kawato (2005) eq. 4.44-4.51 and the Kalman q of eq. 4.41.
 struct AxisDesign {
   const char* name;
   double inertia;          ///< 6.20 kg (X, Y) or 0.054 kg m^2 (theta_z)

@@ -1,4 +1,4 @@
-// Seed 002 (Sensors 2016, 16, 1504) through the real loader and scheduler: force-fit constants
+// Sensors 2016, 16, 1504 through the real loader and scheduler: force-fit constants
 // (Table 3 -> Table 4), exact UKF weights, Hall conversion spot values, and the closed loop of
 // config/suspension_ukf.yaml on a self-consistent plant: (i) the UKF-fed loop is stable for
 // steps in 22-30 mm, (ii) the UKF's distance RMS error is at most 1/5 of the direct
@@ -139,7 +139,7 @@ void set_steps(YAML::Node& root, double start, const std::vector<std::pair<doubl
   ref["steps"] = list;
 }
 
-// --- the figures that are reproducible exactly (spec §5.3 rows 1-3) ----------------------
+// --- the figures that are reproducible exactly (Table 4, eq. 21, eq. 16) -----------------
 
 TEST(Seed002Paper, ForceFitConstantsOfTable4) {
   // Table 3's per-current fits through the plant's stage-2 fit (eq. 11-12).
@@ -196,7 +196,7 @@ TEST(Seed002Paper, HallConversionSpotValues) {
   EXPECT_DOUBLE_EQ(1e3 * at(table.elements()[0], "gap_m").as_number(), 46.9);
 }
 
-// --- the closed loop (spec §5.3 last row: qualitative, on a self-consistent plant) --------
+// --- the closed loop (qualitative, on a self-consistent plant) ----------------------------
 
 TEST(Seed002ClosedLoop, UkfFedLoopHoldsAndFollowsStepsAcross22To30mm) {
   // (i) The shipped pipeline: 26 -> 22 -> 30 -> 24 -> 28 -> 25 mm, one second each.
@@ -572,7 +572,7 @@ TEST(Seed002ClosedLoop, EkfFedLoopIsStableToo) {
 }
 
 TEST(Seed002ClosedLoop, PrintedEq35CoefficientsDoNotHoldThisPlant) {
-  // Eq. 35 as printed was tuned on the massless linearisation of eq. 32 (spec §7.3): on the
+  // Eq. 35 as printed was tuned on the massless linearisation of eq. 32 (so says the paper): on the
   // self-consistent plant its derivative action (-0.49 V*s/m against the ~17 needed) cannot
   // stabilise the magnet. Pinned so that a change in the plant or the PID shows here.
   YAML::Node root = config();

@@ -1,11 +1,12 @@
-// Seed 003 (Silva-Rivas & Kim 2013) in closed loop, through the real loader and scheduler:
-// config/maglev6_hybrid.yaml and its variants (LQ only / + DKF / + notch / + notch + DKF),
-// the spec §6.1 pass criteria:
+// Silva-Rivas & Kim (2013) in closed loop, through the real loader and scheduler:
+// config/maglev6_hybrid.yaml and its variants, the configurations of the paper's Figs. 3-6,
+// called R1-R4 here (R1 LQ only, R2 + DKF, R3 + notch, R4 + notch + DKF), against these pass
+// criteria (set here; the paper's figures are plots):
 //   * R1-R4 ranking of the hold p-p over 5 noise seeds (1 s windows), the ratios R1/Rn
 //     against the paper's within a factor of 3, and R1/R2 against the DKF's own 50 Hz
 //     attenuation,
 //   * 50 Hz line suppression (DKF alone vs LQ only; notch output),
-//   * d = 1 best with the notch (R6), the no-notch d curve reported (R5),
+//   * d = 1 best with the notch (Fig. 8), the no-notch d curve reported (Fig. 7),
 //   * observer and closed loop stable for d in {0, 0.3, 0.8, 1} (spectral radii of the
 //     filter and of the whole sampled loop built from `describe()`, and a noise-free
 //     simulation from an offset),
@@ -53,7 +54,7 @@ std::string read_file(const std::string& path) {
   return ss.str();
 }
 
-/// The configurations of spec §6 R1-R4 (what feeds the LQ).
+/// The configurations R1-R4 of the paper's Figs. 3-6 (what feeds the LQ).
 enum class Chain { lq_only, dkf_only, notch_only, notch_dkf };
 const char* chain_name(Chain c) {
   switch (c) {
@@ -76,7 +77,7 @@ struct Variant {
   bool replace_steps = false;
   std::array<double, 6> initial{};
   bool kalman_side_by_side = false;
-  bool exact_null_notch = false;  ///< spec §4.3 redesign instead of the printed eq. 34
+  bool exact_null_notch = false;  ///< eqs. 31-33 by prewarped Tustin instead of the printed eq. 34
 };
 
 /// The shipped pipeline edited for one variant (yaml-cpp keeps every other setting).
@@ -99,7 +100,7 @@ std::string variant_yaml(const Variant& v) {
     lq_inputs["measurement"] = "observer.pose";
     lq_inputs["velocity"] = "observer.velocity";
   } else {
-    lq_inputs["measurement"] = measured;  // velocity: backward difference (spec C7)
+    lq_inputs["measurement"] = measured;  // velocity: backward difference (the paper does not say)
   }
   lq_inputs["reference"] = "ref.out";
   blocks["lq"]["inputs"] = lq_inputs;
@@ -380,10 +381,10 @@ TEST(Seed003, RankingOfR1ToR4OverFiveSeeds) {
 }
 
 TEST(Seed003, ExactNullNotchVariantIsReported) {
-  // Not a gate: with the spec §4.3 redesign (exact null at 50 Hz) and io.sim's single mains
-  // line, nothing is left at 50 Hz for the DKF to remove after the notch, and R3 and R4 differ
-  // only by the white noise between the notch's and the DKF's corners (spec §6.1's noise model
-  // also has 100/150 Hz harmonics, which io.sim cannot make).
+  // Not a gate: with the exact-null redesign (eqs. 31-33, prewarped Tustin) and io.sim's single
+  // mains line, nothing is left at 50 Hz for the DKF to remove after the notch, and R3 and R4
+  // differ only by the white noise between the notch's and the DKF's corners (the paper's
+  // interference also has harmonics, e.g. 100/150 Hz, which io.sim cannot make).
   double pp[2] = {0.0, 0.0}, line[2] = {0.0, 0.0};
   for (std::uint64_t seed = 1; seed <= kSeeds; ++seed) {
     int slot = 0;
@@ -407,8 +408,9 @@ TEST(Seed003, ExactNullNotchVariantIsReported) {
 }
 
 TEST(Seed003, FiftyHertzLineSuppression) {
-  // spec §6.1: the DKF alone lowers the 50 Hz line by >~ 25-30 dB relative to LQ only (paper
-  // -30 -> -60 dB); the notch output sits at the noise floor at 50 Hz (>= 40 dB down).
+  // Criterion (from the paper's Figs. 3-4, -30 -> -60 dB): the DKF alone lowers the 50 Hz line
+  // by >~ 25-30 dB relative to LQ only; the notch output sits at the noise floor at 50 Hz
+  // (>= 40 dB down).
   double r1 = 0.0, r2 = 0.0, notch = 0.0, r4 = 0.0;
   for (std::uint64_t seed = 1; seed <= kSeeds; ++seed) {
     for (Chain c : {Chain::lq_only, Chain::dkf_only, Chain::notch_dkf}) {
@@ -430,7 +432,7 @@ TEST(Seed003, FiftyHertzLineSuppression) {
   std::printf("50 Hz line in x: LQ only %.2f um, DKF only %.3f um (%.1f dB), notch output %.4f um (%.1f dB), "
               "notch + DKF %.4f um (%.1f dB)\n",
               r1 * 1e6, r2 * 1e6, db(r2 / r1), notch * 1e6, db(notch / r1), r4 * 1e6, db(r4 / r1));
-  std::printf("  paper: DKF -30 dB (-30 -> -60 dB); spec criterion >~ 25-30 dB; notch >= 40 dB\n");
+  std::printf("  paper: DKF -30 dB (-30 -> -60 dB); criterion >~ 25-30 dB; notch >= 40 dB\n");
   // The eq. 27 DKF's own |G(50 Hz)| is -14.0 dB (unit test): that, not the paper's -30 dB, is what
   // a steady-state CA filter with these Q_k/R_k can do. Pinned: >= 12 dB (deviation reported).
   EXPECT_LT(db(r2 / r1), -12.0);
@@ -439,8 +441,8 @@ TEST(Seed003, FiftyHertzLineSuppression) {
 }
 
 TEST(Seed003, DOneIsBestWithTheNotch) {
-  // R6: with the notch, p-p(d = 1) <= p-p(d) for d in {0, 0.3, 0.8}. R5 (no notch: the paper's
-  // best is d = 0.8) is only reported: K^inf is not in the paper (C2).
+  // Fig. 8: with the notch, p-p(d = 1) <= p-p(d) for d in {0, 0.3, 0.8}. Fig. 7 (no notch: the
+  // paper's best is d = 0.8) is only reported: the paper's K^inf (eq. 30) was not available here.
   for (bool with_notch : {true, false}) {
     double pp[4][2] = {};
     for (std::size_t i = 0; i < kPaperWeights.size(); ++i) {
@@ -457,8 +459,8 @@ TEST(Seed003, DOneIsBestWithTheNotch) {
         }
       }
     }
-    std::printf("%s: mean p-p over %d seeds, x / y [um]:", with_notch ? "with notch (R6)" : "without notch (R5)",
-                kSeeds);
+    std::printf("%s: mean p-p over %d seeds, x / y [um]:",
+                with_notch ? "with notch (Fig. 8)" : "without notch (Fig. 7)", kSeeds);
     for (std::size_t i = 0; i < kPaperWeights.size(); ++i) {
       std::printf("  d=%.1f %.3f / %.3f", kPaperWeights[i], pp[i][0] * 1e6, pp[i][1] * 1e6);
     }
@@ -603,11 +605,12 @@ TEST(Seed003, ObserverAndLoopStableForEveryPaperWeight) {
 }
 
 TEST(Seed003, ZeroSteadyStateErrorForTheListedSteps) {
-  // spec R10 steps (20 um x, 10 um y, 100 urad theta_z, 5 um z, 30 urad theta_x, 30 urad
-  // theta_y), all at 0.5 s; the error of the true platen, averaged over 1 s (R13).
+  // The paper's steps (Figs. 9-12: 20 um x, 10 um y, 100 urad theta_z, 5 um z, 30 urad theta_x,
+  // 30 urad theta_y), all at 0.5 s; the error of the true platen, averaged over 1 s, as in the
+  // paper's steady-state figures (Section V).
   const std::array<double, 6> step = {20e-6, 10e-6, 100e-6, 5e-6, 30e-6, 30e-6};
   const double limit_noise_free = 1e-3;        // fraction of the step
-  const double limit_noisy[6] = {0.02, 0.02, 0.02, 0.004, 0.004, 0.004};  // R13: < 2 % / < 0.4 %
+  const double limit_noisy[6] = {0.02, 0.02, 0.02, 0.004, 0.004, 0.004};  // the paper: < 2 % / < 0.4 %
   for (bool noise : {false, true}) {
     Variant v;
     v.noise = noise;

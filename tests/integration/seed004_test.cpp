@@ -1,17 +1,20 @@
-// Seed 004 (Gutierrez & Li, Machines 2024): the nonlinear passive observer (NPO) of 6-DOF body
+// Gutierrez & Li (Machines 2024): the nonlinear passive observer (NPO) of 6-DOF body
 // velocity on a simulated maglev stage, through the real loader: io.sim drives plant.rigid_body6
-// (Table 1) with open-loop forces that produce the paper's test motions E1-E5, six capacitive gap
-// probes (sensor.capacitive_gap, 60 nm rms each) are inverted by estimator.gap_pose, the Table 2
+// (Table 1) with open-loop forces that produce the paper's test motions, called E1-E5 here
+// (E1-E3 the 500 nm x, 250 nm y and 4 urad pitch steps of Figs. 5-7, E4 the reciprocating move
+// of Figs. 8a/9, E5 the 400 nm circle of Figs. 8b/10), six capacitive gap probes
+// (sensor.capacitive_gap, 60 nm rms each) are inverted by estimator.gap_pose, the Table 2
 // low-pass filter (filter.biquad) smooths the pose, and estimator.npo estimates V_B from it and the
 // applied force (io.sim's truth carries the plant's force readback). The paper prints no numbers
-// (spec A9): the pass criteria are spec §6's proposals S1-S8.
+// (plots only): the pass criteria S1-S8 are set here.
 //
 //   S1 exactness with a perfect model     S5 E4 plateau means and sign-change latency
 //   S2 convergence, W non-increasing      S6 E5 circle: amplitude r w, 90 deg between axes
 //   S3 discretization at a0 T = 4          S7 nonlinear vs linear NPO at E1-E5 amplitudes
 //   S4 noise: NPO beats finite difference  S8 force bias: steady velocity error a b / d
-// plus the Table 2 low-pass filter against spec §4 and the shipped config/npo_velocity.yaml in
-// closed loop. S7 deviates from its proposed bound on E1-E3 (see that test and the NPO README).
+// plus the Table 2 low-pass filter against an independent computation and the shipped
+// config/npo_velocity.yaml in closed loop. S7 deviates from its proposed bound on E1-E3 (see
+// that test and the NPO README).
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
@@ -37,7 +40,7 @@
 
 namespace {
 
-constexpr double kRateHz = 2500.0;  // spec §2: the DSP's 2.5 kHz
+constexpr double kRateHz = 2500.0;  // the paper's DSP runs at 2.5 kHz
 constexpr double kT = 1.0 / kRateHz;
 constexpr std::array<double, 6> kM{0.931, 0.931, 0.931, 1.799e-3, 1.834e-3, 3.336e-3};  // Table 1
 constexpr const char* kAxisNames[6] = {"u", "v", "w", "p", "q", "r"};
@@ -74,8 +77,9 @@ std::function<Vec6(double, double)> piecewise(std::vector<Segment> segments) {
   };
 }
 
-/// E1-E3 run together (spec §5): 500 nm in x, 250 nm in y and 4 urad about y (pitch theta), each
-/// by bang-bang acceleration over 2 x 10 ms from t = 20 ms (the paper's step shape is not given).
+/// E1-E3 run together, as in the paper: 500 nm in x, 250 nm in y and 4 urad about y (pitch
+/// theta), each by bang-bang acceleration over 2 x 10 ms from t = 20 ms (the paper's step shape
+/// is not given).
 Motion steps_e1_e3() {
   const double tau = 0.010;
   const Vec6 a{500e-9 / (tau * tau), 250e-9 / (tau * tau), 0.0, 0.0, 4e-6 / (tau * tau), 0.0};
@@ -113,7 +117,7 @@ Motion reciprocating_e4() {
   return m;
 }
 
-/// E5: a 400 nm circle in XY. The period is not given (spec §5); 0.2 s (5 Hz) makes the speed
+/// E5: a 400 nm circle in XY. The paper gives no period; 0.2 s (5 Hz) makes the speed
 /// r w = 12.6 um/s, like E4's plateau. The stage starts on the circle with the circle's velocity.
 constexpr double kE5Radius = 400e-9;
 constexpr double kE5Period = 0.2;
@@ -147,7 +151,7 @@ std::string list_text(const Vec6& v) {
   return s + "]";
 }
 
-/// The Table 2 gains in SI (spec §3.5, A0 = 1e4) and the tuning rule at 50 Hz, zeta 0.7.
+/// The Table 2 gains in SI (A0 = 1e4; estimator.npo README) and the tuning rule at 50 Hz, zeta 0.7.
 const std::string kTable2 = "d0: 100, a0_per_s: 1.0e4";
 const std::string kTuned = "observer_frequency_hz: 50, observer_damping: 0.7";
 
@@ -175,7 +179,8 @@ std::string pipeline_yaml(const Motion& motion, const Rig& rig) {
     << "  pose: {plugin: estimator.gap_pose, model: gaps, noise_std_v: 1.2e-3, inputs: {measurement: board.signals}}\n";
   std::string z = "pose.pose";
   if (rig.low_pass) {
-    // Table 2: H(z) = l3 / (1 - 2 l1 z^-1 + l2 z^-2), l1 = 0.79954, l2 = 0.65902, l3 = 0.05994 (spec A4).
+    // Table 2: H(z) = l3 / (1 - 2 l1 z^-1 + l2 z^-2), l1 = 0.79954, l2 = 0.65902, l3 = 0.05994
+    // (the form that gives DC gain 1).
     y << "  lpf: {plugin: filter.biquad, type: coefficients, coefficients: [0.05994, 0, 0, -1.59908, 0.65902],"
       << " inputs: {in: pose.pose}}\n";
     z = "lpf.out";
@@ -322,7 +327,7 @@ TEST(Seed004, S1ExactWithAPerfectModel) {
   rig.observers = {{"table2", kTable2},
                      {"tuned", kTuned},
                      {"table2_implicit", kTable2 + ", integrator: backward_euler"},
-                     {"table2_small_a", "d0: 100, a0_per_s: 1.0e-4"}};  // the other reading of A0 (spec A2)
+                     {"table2_small_a", "d0: 100, a0_per_s: 1.0e-4"}};  // the other reading of A0 (npo README)
   for (const Motion& motion : all_motions()) {
     const Trace tr = run(motion, rig);
     ASSERT_TRUE(tr.ok) << tr.error;
@@ -360,7 +365,7 @@ Gains tuned_gains() {
   const double w = 2.0 * std::numbers::pi * 50.0;
   Gains g{"tuned", kTuned, {}, {}};
   for (std::size_t i = 0; i < 6; ++i) {
-    g.d[i] = kM[i] * w * w;  // spec §3.5 tuning rule
+    g.d[i] = kM[i] * w * w;  // the tuning rule (estimator.npo README)
     g.a[i] = 2.0 * 0.7 * w;
   }
   return g;
@@ -372,7 +377,8 @@ double slow_rate(double m, double d, double a) {
   return disc >= 0.0 ? 0.5 * (-a + std::sqrt(disc)) : -0.5 * a;
 }
 
-/// W = 1/2 V~' M V~ + 1/2 P~' D0 P~ (spec §3.3) at every sample.
+/// W = 1/2 V~' M V~ + 1/2 P~' D0 P~ (the composite Lyapunov function, estimator.npo README) at
+/// every sample.
 std::vector<double> composite_w(const Trace& tr, std::size_t observer, const Vec6& d) {
   std::vector<double> w;
   for (std::size_t k = 0; k < tr.t.size(); ++k) {
@@ -387,8 +393,8 @@ std::vector<double> composite_w(const Trace& tr, std::size_t observer, const Vec
   return w;
 }
 
-// From random initial errors (V~, P~), W never increases and the errors decay at the rates of
-// spec §3.5: Table 2 gains -0.0107 (translation), -5.56, -5.46, -3.00 1/s (rotations); tuned
+// From random initial errors (V~, P~), W never increases and the errors decay at the derived
+// rates: Table 2 gains -0.0107 (translation), -5.56, -5.46, -3.00 1/s (rotations); tuned
 // gains: envelope zeta w = 220 1/s.
 TEST(Seed004, S2ConvergenceFromRandomInitialErrors) {
   REQUIRE_CHAIN();
@@ -398,7 +404,7 @@ TEST(Seed004, S2ConvergenceFromRandomInitialErrors) {
     for (const Gains& gains : {table2_gains(), tuned_gains()}) {
       Vec6 p0{}, v0{};
       for (std::size_t i = 0; i < 6; ++i) {
-        // 1 um, 10 urad, 10 um/s, 10 urad/s: the experiments' scale (spec §3.4). Much larger rate
+        // 1 um, 10 urad, 10 um/s, 10 urad/s: the experiments' scale. Much larger rate
         // errors make the observer's own Coriolis term C(V^)V^ (~ rate error x velocity error)
         // visible against the 93 s translational mode and bias its fitted rate by a few percent.
         p0[i] = motion.initial_pose[i] + (i < 3 ? 1e-6 : 1e-5) * unit(rng);
@@ -433,7 +439,7 @@ TEST(Seed004, S2ConvergenceFromRandomInitialErrors) {
           const double e2 = tr.truth_velocity[k2][i] - tr.velocity[0][k2][i];
           const double measured = std::log(std::abs(e2 / e1)) / (tr.t[k2] - tr.t[k1]);
           const double expected = slow_rate(kM[i], gains.d[i], gains.a[i]);
-          std::printf("   %s: decay %.5g 1/s (tau %.4g s), spec §3.5 %.5g 1/s\n", kAxisNames[i], measured, -1.0 / measured,
+          std::printf("   %s: decay %.5g 1/s (tau %.4g s), derived %.5g 1/s\n", kAxisNames[i], measured, -1.0 / measured,
                       expected);
           EXPECT_NEAR(measured / expected, 1.0, 0.01) << kAxisNames[i];
         }
@@ -550,7 +556,7 @@ TEST(Seed004, S7NonlinearAndLinearObserversAgreeAtThePapersAmplitudes) {
       if (tilt_effect == 0.0) {
         EXPECT_LT(dv, 1e-6) << motion.name;
       } else {
-        // DEVIATION from spec §6 S7 (< 1e-6): E3's 4 urad pitch during E1's 50 um/s move gives a
+        // DEVIATION from S7's bound (< 1e-6): E3's 4 urad pitch during E1's 50 um/s move gives a
         // body-frame w of theta u = 2e-10 m/s, 4e-6 of max |v|; the nonlinear observer follows it
         // (it is the true V_B), the linear one cannot. The difference is that frame effect, no more.
         EXPECT_GT(dv, 0.1 * tilt_effect) << motion.name;
@@ -573,7 +579,7 @@ TEST(Seed004, S7NonlinearAndLinearObserversAgreeAtThePapersAmplitudes) {
 // ---- S8: force-bias sensitivity --------------------------------------------------------------------
 
 /// Continuous response of the per-axis error (p~, v~) to a constant force bias b from zero error:
-/// x' = A_e x + [0, -b/m], x(t) = (e^{A_e t} - I) A_e^-1 [0, -b/m]  (spec §3.5).
+/// x' = A_e x + [0, -b/m], x(t) = (e^{A_e t} - I) A_e^-1 [0, -b/m]  (per-axis error dynamics).
 Eigen::Vector2d bias_transient(double m, double d, double a, double b, double t) {
   Eigen::Matrix2d ae;
   ae << -a, 1.0, -d / m, 0.0;
@@ -586,8 +592,8 @@ Eigen::Vector2d bias_transient(double m, double d, double a, double b, double t)
 }
 
 // A constant bias b on the force the observer is told leaves the steady velocity error a b / d
-// per axis (spec §3.5). With the Table 2 gains read in SI that is 100 m/s per newton: the unit
-// and gain issue of spec §3.5 / A8.
+// per axis. With the Table 2 gains read in SI that is 100 m/s per newton: the paper states no
+// units for its gains (estimator.npo README).
 TEST(Seed004, S8ForceBiasLeavesVelocityErrorAbOverD) {
   REQUIRE_CHAIN();
   const Vec6 bias{1e-6, -2e-6, 1.5e-6, 1e-9, -2e-9, 1.5e-9};  // 1 uN and 1 nN*m scale
@@ -624,8 +630,9 @@ TEST(Seed004, S8ForceBiasLeavesVelocityErrorAbOverD) {
 
 // ---- S4-S6: with sensor noise and the Table 2 low-pass filter ------------------------------------
 
-/// 60 nm rms per probe (1.2 mV at 20 mV/um, spec §2), a 16-bit +-10 V converter (LSB 15 nm), the
-/// Table 2 pre-filter, and the finite difference of its output (the paper's "measured velocity").
+/// 60 nm rms per probe (1.2 mV at 20 mV/um; the paper's estimate), a 16-bit +-10 V converter
+/// (LSB 15 nm), the Table 2 pre-filter, and the finite difference of its output (the paper's
+/// "measured velocity").
 Rig noisy_rig() {
   Rig rig;
   rig.noise_std_v = 1.2e-3;
@@ -715,7 +722,7 @@ TEST(Seed004, S5ReciprocatingPlateausAndSignChange) {
     const double seen_reverse = first_crossing(tr, tr.velocity[o], 0, kE4ReturnStart, level, -1.0);
     const double true_start = first_crossing(tr, tr.truth_velocity, 0, kE4Start, level, 1.0);
     const double seen_start = first_crossing(tr, tr.velocity[o], 0, kE4Start, level, 1.0);
-    std::printf("S5 %-6s plateaus %+.3f / %+.3f um/s (FD %+.3f / %+.3f; spec +-11.5 +-10 %%), start seen %.2f ms and "
+    std::printf("S5 %-6s plateaus %+.3f / %+.3f um/s (FD %+.3f / %+.3f; want +-11.5 +-10 %%), start seen %.2f ms and "
                 "reversal %.2f ms after the truth (limit 11.5 ms)\n",
                 rig.observers[o].first.c_str(), up * 1e6, down * 1e6, fd_up * 1e6, fd_down * 1e6,
                 (seen_start - true_start) * 1e3, (seen_reverse - true_reverse) * 1e3);
@@ -777,7 +784,7 @@ TEST(Seed004, S6CircleAmplitudeAndQuadrature) {
 // ---- the shipped pipeline ---------------------------------------------------------------------------
 
 // config/npo_velocity.yaml closed loop: E1-E3 steps tracked (500 nm, 250 nm, 4 urad), the NPO's
-// velocity error far below the finite difference's, and describe() shows the spec §3.5 numbers.
+// velocity error far below the finite difference's, and describe() shows the derived poles.
 TEST(Seed004, ShippedPipelineTracksTheStepsWithTheObserverInTheLoop) {
   REQUIRE_CHAIN();
   REQUIRE_LPF();
@@ -835,16 +842,17 @@ TEST(Seed004, ShippedPipelineTracksTheStepsWithTheObserverInTheLoop) {
   const auto& x_axis = npo->find("axes")->elements()[0];
   const double slow = std::max(x_axis.find("error_poles_rad_s")->elements()[0].find("re")->as_number(),
                                x_axis.find("error_poles_rad_s")->elements()[1].find("re")->as_number());
-  EXPECT_NEAR(slow, -0.0107, 1e-4);  // spec §3.5
+  EXPECT_NEAR(slow, -0.0107, 1e-4);  // derived for the Table 2 gains in SI
   p->deactivate();
 }
 
 
-// ---- the Table 2 pre-filter (spec §4) ------------------------------------------------------------
+// ---- the Table 2 pre-filter ---------------------------------------------------------------------
 
-// filter.biquad with the Table 2 coefficients, driven with sines: the gains of spec §4's table
-// (-0.01 dB at 10 Hz ... -33.8 dB at 1 kHz), unity DC gain, -3 dB near 99.3 Hz (not the 120 Hz the
-// paper says it chose) and a group delay of about 4.7 samples at low frequency.
+// filter.biquad with the Table 2 coefficients, driven with sines: the gains of a table computed
+// independently (-0.01 dB at 10 Hz ... -33.8 dB at 1 kHz), unity DC gain, -3 dB near 99.3 Hz
+// (not the 120 Hz the paper says it chose) and a group delay of about 4.7 samples at low
+// frequency.
 TEST(Seed004, Table2LowPassFilterMatchesSpecSection4) {
   REQUIRE_LPF();
   auto measure = [](double f_hz, double& gain, double& delay_samples) {
@@ -877,12 +885,12 @@ TEST(Seed004, Table2LowPassFilterMatchesSpecSection4) {
     double gain = 0.0, delay = 0.0;
     ASSERT_TRUE(measure(f, gain, delay));
     const double db = 20.0 * std::log10(gain);
-    std::printf("LPF %6.0f Hz: %7.2f dB (spec §4: %6.2f dB)\n", f, db, printed);
+    std::printf("LPF %6.0f Hz: %7.2f dB (ref: %6.2f dB)\n", f, db, printed);
     EXPECT_NEAR(db, printed, std::max(0.02, 0.005 * std::abs(printed)));
   }
   double gain = 0.0, delay = 0.0;
   ASSERT_TRUE(measure(1.0, gain, delay));
-  std::printf("LPF 1 Hz: gain %.5f, group delay ~ phase delay %.2f samples (spec: 4.69 samples, 1.88 ms)\n", gain, delay);
+  std::printf("LPF 1 Hz: gain %.5f, group delay ~ phase delay %.2f samples (ref: 4.69 samples, 1.88 ms)\n", gain, delay);
   EXPECT_NEAR(gain, 1.0, 1e-4);
   EXPECT_NEAR(delay, 4.69, 0.05);
   // The -3 dB point by bisection on the measured response.
@@ -893,7 +901,7 @@ TEST(Seed004, Table2LowPassFilterMatchesSpecSection4) {
     ASSERT_TRUE(measure(mid, g, d));
     (20.0 * std::log10(g) > -3.0103 ? lo : hi) = mid;
   }
-  std::printf("LPF -3 dB at %.1f Hz (spec: 99.3 Hz; the paper says 120 Hz)\n", 0.5 * (lo + hi));
+  std::printf("LPF -3 dB at %.1f Hz (ref: 99.3 Hz; the paper says 120 Hz)\n", 0.5 * (lo + hi));
   EXPECT_NEAR(0.5 * (lo + hi), 99.3, 0.3);
 }
 

@@ -1,5 +1,5 @@
 // controller.discrete_tf: per-axis SISO discrete transfer functions u = D(z) e,
-// e = reference - measurement (Kawato 2005, eq. 4.48-4.51 and 5.4; spec seed-000 §5.2).
+// e = reference - measurement (Kawato 2005, eq. 4.48-4.51 and 5.4).
 //
 // @system
 // name: controller.discrete_tf

@@ -76,7 +76,7 @@ Expected<Design> design(const Matrix& A, const Matrix& B, bool continuous, doubl
     d.plant_A = A;
     d.plant_B = B;
   }
-  // [pos; vel] -> [pos; int; vel] with z_{k+1} = z_k + T pos_k (spec §1.5, C6).
+  // [pos; vel] -> [pos; int; vel] with z_{k+1} = z_k + T pos_k, in the order of the printed Q and K.
   const Matrix& Ap = d.plant_A;
   const Matrix identity = Matrix::Identity(p, p);
   d.Phi = Matrix::Zero(3 * p, 3 * p);
@@ -480,7 +480,7 @@ StepStatus LqIntegralController::step(const Tick& /*tick*/) noexcept {
 
 void LqIntegralController::describe(Json& out) const {
   out["period_s"] = period_s_;
-  out["law"] = "u = u* - K xi, xi = [pos - pos*; z; vel], z_{k+1} = z_k + T (pos_k - pos*_k) (spec seed-003 §2, C6)";
+  out["law"] = "u = u* - K xi, xi = [pos - pos*; z; vel], z_{k+1} = z_k + T (pos_k - pos*_k) (eqs. 10, 14)";
   out["velocity_source"] = velocity_.connected() ? "velocity input"
                                                  : "velocity input if connected, else (pos_k - pos_{k-1}) / T";
   out["anti_windup"] = anti_windup_ ? "clamp |u_j| to output_limit; hold the mode's integrators while their "
@@ -573,5 +573,5 @@ constexpr PortDoc kPorts[] = {
 }  // namespace lode::plugins
 
 LODE_PLUGIN(lode::plugins::LqIntegralController, "controller.lq_integral", lode::PluginKind::block, "0.1.0",
-            "Integrator-augmented discrete LQ per mode, [position, integral, velocity] state (seed-003 §2)",
+            "Integrator-augmented discrete LQ per mode, [position, integral, velocity] state (Silva-Rivas & Kim 2013)",
             lode::plugins::kParams, lode::plugins::kPorts)

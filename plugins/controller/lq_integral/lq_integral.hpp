@@ -1,5 +1,5 @@
 // controller.lq_integral: integrator-augmented discrete LQ state feedback, one 3p-state design
-// per mode (Silva-Rivas & Kim 2013, eqs. 8-19; spec seed-003 §2, caveat C6).
+// per mode (Silva-Rivas & Kim 2013, eqs. 8-19).
 //
 // @system
 // name: controller.lq_integral
@@ -15,17 +15,18 @@
 // Per mode (p positions, m inputs), the plant x = [pos; vel] (2p states) is
 //   continuous  x' = A x + B u, discretised by zero-order hold at the block period T, or
 //   discrete    x_{k+1} = A x_k + B u_k at T,
-// and is augmented with the output-error integrator of eq. 14, discretised as in the spec's
-// inverse fit (§1.5):  z_{k+1} = z_k + T (pos_k - pos*_k).  The augmented state, in the order
-// of the printed Q and K (spec C6), is  xi = [pos - pos*; z; vel]  (3p states):
+// and is augmented with the output-error integrator of eq. 14, discretised as in the inverse
+// fit of plant.maglev6's surrogate B:  z_{k+1} = z_k + T (pos_k - pos*_k).  The augmented state,
+// in the order of the printed Q and K (eq. 14 writes [x; z], velocities before integrals), is
+// xi = [pos - pos*; z; vel]  (3p states):
 //   xi_{k+1} = Phi xi_k + Gamma u_k,   Phi = [[A_pp, 0, A_pv], [T I, I, 0], [A_vp, 0, A_vv]],
 //   Gamma = [B_p; 0; B_v],
 // and the gain minimises sum xi'Q xi + u'R u (discrete DARE, lode::math::dlqr):
 //   u_k = u* - K xi_k                                                   (eq. 10, Delta u = -K xi)
-// References enter only through the error coordinates (no feedforward, §2.1). Velocities come
-// from the velocity input (an observer's estimate) or, when it is not connected, from the
-// backward difference (pos_k - pos_{k-1})/T (spec C7: the paper does not say).
-// Anti-windup (not in the paper, §2.1): with output_limit set, each |u_j| is clamped, and while
+// References enter only through the error coordinates (no feedforward, eqs. 8-10). Velocities
+// come from the velocity input (an observer's estimate) or, when it is not connected, from the
+// backward difference (pos_k - pos_{k-1})/T (the paper does not say what its "LQ alone" runs used).
+// Anti-windup (not in the paper): with output_limit set, each |u_j| is clamped, and while
 // any clamped output would be pushed further into its limit by this cycle's integrator
 // increment (-K_int T e), the integrators of the mode hold (conditional integration).
 //

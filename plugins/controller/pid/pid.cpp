@@ -513,5 +513,5 @@ constexpr PortDoc kPorts[] = {
 }  // namespace lode::plugins
 
 LODE_PLUGIN(lode::plugins::PidController, "controller.pid", lode::PluginKind::block, "0.1.0",
-            "Discrete PID in the recursive form of seed 002 eq. 35, output clamp with anti-windup, 2-DOF weights",
+            "Discrete PID, recursive form of Sensors 2016 eq. 35, output clamp with anti-windup, 2-DOF weights",
             lode::plugins::kParams, lode::plugins::kPorts)

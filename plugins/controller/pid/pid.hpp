@@ -1,5 +1,5 @@
 // controller.pid: per-axis discrete PID with output limits and anti-windup, in the recursive
-// (velocity) form of seed 002's clamped PID (eq. 35; spec seed-002-hall-ukf.md §7.3).
+// (velocity) form of the clamped PID of Sensors 2016, 16, 1504 (eq. 35).
 //
 // @system
 // name: controller.pid
@@ -10,7 +10,7 @@
 //   out: n elements named output_names with output_units            # e.g. coil_voltage [V]
 // @endsystem
 //
-// Per axis, with e = r - y (reference minus measurement), eq. 35 as the spec reads it:
+// Per axis, with e = r - y (reference minus measurement), eq. 35 read as output clamping:
 //   v(k) = -a1 u(k-1) - a2 u(k-2) + b0 e(k) + b1 e(k-1) + b2 e(k-2)
 //   u(k) = clamp(v(k), output_min, output_max)        (f1, f2 of eq. 35: the unclamped value,
 //                                                      then saturation)

@@ -21,7 +21,7 @@ bool decode_angle(Method method, double z_sin, double z_cos, double& theta_rad) 
   }
   // eq. 3: use the better-conditioned inverse function of the normalised signals (the one
   // whose argument is away from +-1), then place the angle in its quadrant from the signs,
-  // which the printed equation leaves out (spec §9 A3).
+  // which the printed equation leaves out.
   constexpr double kPi = std::numbers::pi;
   if (std::abs(z_sin) <= std::abs(z_cos)) {
     const double principal = std::asin(z_sin / norm);  // [-pi/4, pi/4]
@@ -62,7 +62,7 @@ void Decoder::update(double theta_rad) noexcept {
     return;
   }
   // Coarse position: a jump of more than half a period between samples is a wrap of the
-  // fine angle, not motion (valid while |v| T < pitch / 2, spec §3.4).
+  // fine angle, not motion (valid while |v| T < pitch / 2).
   const double jump = theta_rad - previous_theta_rad_;
   if (jump > std::numbers::pi) {
     --cycle_count_;

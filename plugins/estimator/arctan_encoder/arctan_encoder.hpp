@@ -1,5 +1,5 @@
 // estimator.arctan_encoder: the "standard" (inverse trigonometric) sin/cos decoder, the
-// baseline of Zimmerman, Oshman & Brandes 2006 (spec seed-001 §4, §3.4).
+// baseline of Zimmerman, Oshman & Brandes 2006 (eqs. 2-3).
 //
 // Per sample: fine position within a scale period from the two channels, a coarse cycle
 // counter that unwraps it into an absolute position, and velocity by backward difference.
@@ -7,10 +7,11 @@
 //   atan2 (eq. 2):          theta = atan2(z1, z2)
 //   arcsin_arccos (eq. 3):  theta = arcsin(z1/|z|)   if |z1| <= |z2|   } with the quadrant
 //                           theta = arccos(z2/|z|)   if |z2| <  |z1|   } from the signs of
-//                                                                      } z1, z2 (spec §9 A3)
+//                                                                      } z1, z2 (not printed)
 //   coarse counter:  n += 1 when theta jumps by < -pi, n -= 1 when it jumps by > pi
 //   position:        x_k = (n + theta / (2 pi)) pitch
-//   velocity:        v_k = (x_k - x_{k-1}) / T   (backward difference, spec §4 / §9 A8; 0 at k = 0)
+//   velocity:        v_k = (x_k - x_{k-1}) / T   (backward difference: unnamed in the paper, it
+//                                                 fits Table 3; 0 at k = 0)
 //
 // In exact arithmetic eq. 3 with quadrant logic gives the same angle as eq. 2 (both divide
 // by |z|), so both methods have the same noise: sigma / V rad per sample, i.e.

@@ -1,5 +1,5 @@
 // estimator.ekf: extended Kalman filter over a plugin process model and a plugin measurement
-// model, additive noise (seed 002's comparator, Fig. 19; spec seed-002-hall-ukf.md §3.8).
+// model, additive noise (the comparator of Sensors 2016, 16, 1504, Fig. 19).
 //
 // @system
 // name: estimator.ekf
@@ -17,7 +17,8 @@
 //                      P = (I - K H) P^- (I - K H)' + K R K'   (Joseph form: symmetric and
 //                      positive semidefinite for any gain, under rounding)
 // F is the process model's analytic Jacobian when it has one (plant.suspension with the Euler
-// step: spec §3.8 with the mass), else central differences (jacobian: numerical forces them);
+// step: derived from eq. 33 with the mass divided out), else central differences (jacobian:
+// numerical forces them);
 // H comes from the measurement model's jacobian(), its columns mapped onto the process state.
 //
 // Threads: configure()/activate()/describe() on the loader thread, step() on the RT thread

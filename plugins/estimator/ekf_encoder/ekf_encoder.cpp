@@ -73,7 +73,7 @@ StateMatrix singer_process_noise(double alpha_rad_s, double period_s, double acc
   const double a = alpha_rad_s * period_s;
   double b11, b12, b13, b22, b23;
   if (a < kSeriesThreshold) {
-    // Coefficient of a^n of each bracket, from the exponential series (spec §2.3):
+    // Coefficient of a^n of each bracket, from the exponential series:
     //   (10a) (4n - 2^n)/n!  from n = 5 ((aT)^5/10),  (10b) (2^n - 2 - 2n)/n! from n = 4,
     //   (10c) (2n - 2^n)/n!  from n = 3,  (10d) (4 - 2^n)/n! from n = 3,  (10e) (2^n - 2)/n!
     //   from n = 2, each times (-1)^n.
@@ -346,7 +346,7 @@ StepStatus EkfEncoder::step(const Tick& /*tick*/) noexcept {
     if (!std::isfinite(signals_[c])) return fault("non-finite encoder signal");
   }
   if (first_cycle_) {
-    // x(0) = [coarse position of the first sample, 0, 0], P(0) = P0 (spec §3.3).
+    // x(0) = [coarse position of the first sample, 0, 0], P(0) = P0 (assumed: not in the paper).
     const double position_m = initial_.connected() ? initial_[0] : initial_position_m_;
     if (!std::isfinite(position_m)) return fault("non-finite initial position");
     filter_.reset(position_m);
@@ -393,7 +393,7 @@ void EkfEncoder::describe(Json& out) const {
       alpha_rad_s_ * period_s_ < ekf_encoder::kSeriesThreshold ? "Taylor series of each bracket (alpha T < 0.5)"
                                                                : "closed form (10a-f)";
   // The printed closed form evaluated literally, and how far rounding takes it from the
-  // series (spec §2.3: ~8 significant digits left at 20 kHz, ~4 at 100 kHz).
+  // series (~8 significant digits left at 20 kHz, ~4 at 100 kHz).
   const StateMatrix printed =
       ekf_encoder::singer_process_noise_as_printed(alpha_rad_s_, period_s_, acceleration_variance_);
   out["process_noise_Qd_as_printed"] = matrix_json(printed);
@@ -412,7 +412,7 @@ void EkfEncoder::describe(Json& out) const {
   if (!model_) return;
   // Steady state: all channels act like one position measurement of variance
   // r_eq = 1 / sum(h_i^2 / r_i) (evaluated at initial_position_m; phase-independent for the
-  // ideal sin/cos model with equal channel noise, spec §3.1).
+  // ideal sin/cos model with equal channel noise).
   std::array<double, ekf_encoder::kMaxChannels> y{};
   std::array<double, ekf_encoder::kMaxChannels> h{};
   model_->jacobian(&initial_position_m_, y.data(), h.data());
@@ -457,9 +457,9 @@ constexpr ParamDoc kParams[] = {
      "measurement model in `models:` (sensor.sincos_encoder): one state element x [m], 1-4 channels [V]"},
     {"acceleration_pole_rad_s", "number", "628.3185307 (200 pi)", "Singer acceleration pole alpha (Table 1), > 0"},
     {"acceleration_variance_m2_s4", "number", "1e-5",
-     "sigma_m^2 of eq. 10 as printed (the steady-state acceleration variance, spec §2.3), >= 0"},
+     "sigma_m^2 of eq. 10 as printed (the steady-state acceleration variance, see README), >= 0"},
     {"noise_std_v", "number|list<number>", "8e-3", "measurement noise std per channel [V]: R = diag(std^2)"},
-    {"initial_position_std_m", "number", "4e-8", "sqrt P(0)_11 [m] (spec §3.3: pitch/100)"},
+    {"initial_position_std_m", "number", "4e-8", "sqrt P(0)_11 [m] (pitch/100; the paper gives no P(0))"},
     {"initial_velocity_std_m_s", "number", "1e-4", "sqrt P(0)_22 [m/s]"},
     {"initial_acceleration_std_m_s2", "number", "1e-2", "sqrt P(0)_33 [m/s^2]"},
     {"initial_position_m", "number", "0",

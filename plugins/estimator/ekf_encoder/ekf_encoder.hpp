@@ -1,25 +1,25 @@
 // estimator.ekf_encoder: 3-state extended Kalman filter that decodes analog sin/cos encoder
 // signals into absolute position, velocity and acceleration (Zimmerman, Oshman & Brandes
-// 2006; spec seed-001 §2-§3).
+// 2006, eqs. 6-16).
 //
 // Process model: the Singer model, acceleration a first-order Gauss-Markov process with pole
 // alpha (eq. 6-7), discretised exactly over the sample time T (eq. 8-10):
 //
 //   x = [x, v, a],   x(k+1) = F x(k) + w_d(k)
 //   F = [[1, T, (aT - 1 + e^-aT)/a^2], [0, 1, (1 - e^-aT)/a], [0, 0, e^-aT]]        (9)
-//   Q_d from (10a-f) *as printed*, sigma_m^2 = acceleration_variance_m2_s4 (spec §2.3: the
-//   printed entries are Singer's for a white-noise PSD of 2 alpha sigma_m^2, so sigma_m^2 is
-//   the steady-state acceleration variance [(m/s^2)^2], whatever Table 1's unit says; this
-//   reading reproduces the paper's Fig. 6, spec §5.5).
+//   Q_d from (10a-f) *as printed*, sigma_m^2 = acceleration_variance_m2_s4 (the printed
+//   entries are Singer's for a white-noise PSD of 2 alpha sigma_m^2, so sigma_m^2 is the
+//   steady-state acceleration variance [(m/s^2)^2], whatever Table 1's unit says; this
+//   reading reproduces the paper's Fig. 6, the literal-PSD one does not: README).
 //
 // (10a-b) cancel catastrophically for small alpha T (the bracket of q11 is ~(alpha T)^5/10),
 // so Q_d is evaluated from the Taylor series of each bracket when alpha T < 0.5 and from the
-// printed closed form otherwise; describe() shows both and their difference (spec §2.3).
+// printed closed form otherwise; describe() shows both and their difference.
 //
 // Measurement model: any lode::MeasurementModel with one state element (position [m]) and
 // 1-4 channels [V], normally sensor.sincos_encoder: h(x) and dh/dx (the corrected eq. 11).
 // The filter carries the *absolute* position: h is periodic, so no unwrapping is needed
-// while the one-step prediction error stays well below pitch / (2 pi) (spec §3.4).
+// while the one-step prediction error stays well below pitch / (2 pi).
 //
 // Recursion per sample (eq. 12-16), with R = diag(noise_std_v^2):
 //   x(k+1|k) = F x(k|k),  P(k+1|k) = F P(k|k) F' + Q_d                        (12, 13)
@@ -29,7 +29,7 @@
 // H has one non-zero column, so K = P e1 w' with w = S^-1 dh/dx; the code uses that
 // structure (scalars w'h, w'Rw, w'(z - h)) instead of 3 x m products, same numbers.
 //
-// Initialisation (not in the paper; spec §3.3): x(0) = [first coarse position, 0, 0] from the
+// Initialisation (not in the paper): x(0) = [first coarse position, 0, 0] from the
 // optional `initial` input (normally the arctangent decoder's first sample) or
 // initial_position_m, P(0) = diag(initial_*_std^2); the first sample is then used for a
 // measurement update.
@@ -92,7 +92,7 @@ inline constexpr double kSeriesThreshold = 0.5;
 
 /// Steady state of the recursion (12)-(16) for a position-only measurement with variance
 /// r_eq = 1 / (h' R^-1 h) (the information of all channels; with R = r I and the sin/cos
-/// model it does not depend on the phase, spec §3.1).
+/// model it does not depend on the phase).
 struct SteadyState {
   StateMatrix prior_cov = StateMatrix::Zero();      ///< P(k+1|k)
   StateMatrix posterior_cov = StateMatrix::Zero();  ///< P(k|k)

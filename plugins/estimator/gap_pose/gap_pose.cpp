@@ -204,6 +204,6 @@ constexpr PortDoc kPorts[] = {
 }  // namespace lode::plugins
 
 LODE_PLUGIN(lode::plugins::GapPose, "estimator.gap_pose", lode::PluginKind::block, "0.1.0",
-            "6-DOF pose from gap-probe voltages by Gauss-Newton through a measurement model (seed 004 forward "
-            "kinematics)",
+            "6-DOF pose from gap-probe voltages by Gauss-Newton through a measurement model (Gutierrez & Li "
+            "2024 forward kinematics)",
             lode::plugins::kParams, lode::plugins::kPorts)

@@ -1,5 +1,5 @@
-// estimator.gap_pose: the 6-DOF pose from gap-probe voltages (forward kinematics of seed 004,
-// spec seed-004 §1.1 and §7 item 2: "the 6-DOF pose is computed from the six gaps").
+// estimator.gap_pose: the 6-DOF pose from gap-probe voltages (the forward kinematics Gutierrez &
+// Li 2024 use but do not give: "the 6-DOF pose is computed from the six gaps").
 //
 // The probes' model y = h(P) (e.g. sensor.capacitive_gap, geometry from configuration) is inverted
 // by weighted Gauss-Newton, warm-started from the previous tick's pose, `iterations` steps per tick:

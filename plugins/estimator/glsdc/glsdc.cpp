@@ -78,7 +78,7 @@ Status Glsdc::configure(ConfigureContext& ctx) {
   }
   if (!params.ok()) return Status::error("invalid parameters");
 
-  // W = diag(1/sigma^2) (spec §3.1; the thesis uses sigma = 1 mV on every channel).
+  // W = diag(1/sigma^2) (the thesis uses sigma = 1 mV on every channel).
   weight_.resize(channels_);
   for (int i = 0; i < channels_; ++i) {
     const double sigma = noise_std_v_.size() == 1 ? noise_std_v_[0] : noise_std_v_[i];
@@ -193,7 +193,7 @@ StepStatus Glsdc::step(const Tick& /*tick*/) noexcept {
     Covariance r;
     State dz;
     if (!solve(r, dz)) {
-      singular = true;  // hold the estimate (spec: skip the update)
+      singular = true;  // hold the estimate (skip the update)
       break;
     }
     const State z_full = z_ + dz;

@@ -1,5 +1,5 @@
 // estimator.glsdc: planar pose from Hall voltages by Gaussian least-squares differential
-// correction (Gauss-Newton), as Kawato runs it on the DSP (thesis §4.3, spec seed-000 §3).
+// correction (Gauss-Newton), as Kawato runs it on the DSP (thesis §4.3, Appendix B/C).
 //
 // Per tick, warm-started from the previous tick's estimate z (x, y, theta_z), `iterations` times:
 //   f = h(z), H = dh/dz(z), dy = y~ - f, J_before = dy' W dy             (W = diag(1/sigma^2))

@@ -133,5 +133,5 @@ constexpr PortDoc kPorts[] = {
 }  // namespace lode::plugins
 
 LODE_PLUGIN(lode::plugins::HallDirect, "estimator.hall_direct", lode::PluginKind::block, "0.1.0",
-            "Direct Hall distance of seed 002 (eq. 14-16, coil-compensated static characteristic), the baseline",
+            "Direct Hall distance of Sensors 2016 (eq. 14-16, coil-compensated static characteristic), the baseline",
             lode::plugins::kParams, lode::plugins::kPorts)

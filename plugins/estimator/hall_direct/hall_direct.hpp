@@ -1,6 +1,6 @@
-// estimator.hall_direct: the paper's "direct measurement" (the baseline "standard method",
-// seed 002 §4): the magnet distance from the Hall voltage through the static characteristic
-// with coil-voltage compensation, no filtering (eq. 14-16; spec seed-002-hall-ukf.md §1.3).
+// estimator.hall_direct: the paper's "direct measurement" (the baseline "standard method" of
+// Sensors 2016, 16, 1504): the magnet distance from the Hall voltage through the static
+// characteristic with coil-voltage compensation, no filtering (eq. 14-16).
 //
 // @system
 // name: estimator.hall_direct
@@ -13,7 +13,7 @@
 //   compensated: 1, compensated [V]        # C_H (eq. 15), before clamping
 // @endsystem
 //
-//   C_H    = v_hall - (1.299e-6 v^2 + 9.05e-5 v + 2.544)        (eq. 15, bracketed reading, spec §9 B1)
+//   C_H    = v_hall - (1.299e-6 v^2 + 9.05e-5 v + 2.544)        (eq. 15, bracketed: sensor.hall_gap README)
 //   d_hall = 1e-3 M_H(clamp(C_H, 0, 0.8))  [m]                  (eq. 14, 16; M_H in mm)
 // With the coil_voltage input unconnected, v = 0 (only the quiescent 2.544 V is removed).
 // The polynomial is the one sensor.hall_gap inverts (hall_polynomial.hpp), so the simulated

@@ -334,9 +334,10 @@ Status HybridH2HinfEstimator::configure(ConfigureContext& ctx) {
   if (!hinf_injected_) {
     if (theta.empty()) {
       params.fail("hinf_theta",
-                  "missing: the H-infinity performance level theta (J < 1/theta, spec §3.4) is required "
+                  "missing: the H-infinity performance level theta (J < 1/theta, eq. 29) is required "
                   "unless hinf_gain injects the gain; the paper's gamma = 10 is infeasible with the "
-                  "standard weights (spec §3.4), see describe() for the largest feasible theta");
+                  "standard weights (W = Upsilon q Upsilon', V = r), see describe() for the largest "
+                  "feasible theta");
     } else {
       theta = per_axis(params, "hinf_theta", theta, axes_);
       for (double t : theta) {
@@ -363,7 +364,7 @@ Status HybridH2HinfEstimator::configure(ConfigureContext& ctx) {
   if (hinf_injected_) injected_hinf = gains_from_list(params, "hinf_gain", hinf_gain_list, axes_);
   if (!params.ok()) return Status::error("invalid parameters");
 
-  // Gains, axis by axis (eq. 28 and spec §3.4).
+  // Gains, axis by axis (eq. 28 and Simon 2001's minimax recursion).
   hinf_weights_.clear();
   for (std::size_t i = 0; i < axes_; ++i) {
     const std::string& name = measurement_elements_[i].name;
@@ -395,7 +396,7 @@ Status HybridH2HinfEstimator::configure(ConfigureContext& ctx) {
       std::string why;
       if (design.outcome == hybrid::HinfDesign::Outcome::infeasible) {
         why = "infeasible: the existence condition P^-1 - theta S + H'V^-1 H > 0 fails at iteration " +
-              std::to_string(design.iterations) + " of the H-infinity Riccati recursion (spec §3.4)";
+              std::to_string(design.iterations) + " of the H-infinity Riccati recursion";
       } else if (design.outcome == hybrid::HinfDesign::Outcome::diverged) {
         why = "at or beyond the bound: the H-infinity Riccati recursion diverges (P grew by " +
               number_text(hybrid::kDivergenceGrowth) + " in " + std::to_string(design.iterations) + " iterations)";
@@ -417,7 +418,7 @@ Status HybridH2HinfEstimator::configure(ConfigureContext& ctx) {
   }
   if (!params.ok()) return Status::error("invalid parameters");
 
-  // The blended filter must be stable at the configured d (the paper's warning, spec §3.2).
+  // The blended filter must be stable at the configured d (the paper's warning on eq. 25).
   for (std::size_t i = 0; i < axes_; ++i) {
     const double rho = hybrid::error_spectral_radius(model_, hybrid::blend(d, kalman_gain_[i], hinf_gain_[i]));
     if (!(rho < 1.0)) {
@@ -645,8 +646,8 @@ void HybridH2HinfEstimator::describe(Json& out) const {
   out["period_s"] = period_s_;
   out["phi"] = matrix_json(model_.phi);
   out["upsilon"] = vector_values(model_.upsilon);
-  out["kalman_gain_source"] = kalman_injected_ ? "injected (kalman_gain)" : "designed: steady-state DARE (spec §3.3)";
-  out["hinf_gain_source"] = hinf_injected_ ? "injected (hinf_gain)" : "designed: Simon 2001 minimax recursion (spec §3.4)";
+  out["kalman_gain_source"] = kalman_injected_ ? "injected (kalman_gain)" : "designed: steady-state DARE (eqs. 26-28)";
+  out["hinf_gain_source"] = hinf_injected_ ? "injected (hinf_gain)" : "designed: Simon 2001 minimax recursion";
   Json units = Json::array();
   for (const char* u : {"1", "1/s", "1/s^2"}) units.push(u);
   out["gain_units"] = std::move(units);
@@ -701,7 +702,7 @@ void HybridH2HinfEstimator::describe(Json& out) const {
     axes.push(std::move(axis));
   }
   out["axes"] = std::move(axes);
-  // The paper's warning (spec §3.2): is every d in [0, 1] stable, not only the configured one?
+  // The paper's warning on eq. 25: is every d in [0, 1] stable, not only the configured one?
   double worst = 0.0;
   double worst_d = 0.0;
   for (int k = 0; k <= 100; ++k) {

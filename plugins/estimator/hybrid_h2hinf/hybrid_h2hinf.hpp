@@ -1,5 +1,5 @@
 // estimator.hybrid_h2hinf: the discrete hybrid H2/H-infinity filter of Silva-Rivas & Kim
-// (2013, eqs. 20-30; spec seed-003 §3): one constant-acceleration filter per axis whose
+// (2013, eqs. 20-30): one constant-acceleration filter per axis whose
 // steady-state gain blends a Kalman (H2) gain and a minimax (H-infinity) gain,
 //   K = d K_ss^K + (1 - d) K_ss^inf,   0 <= d <= 1                        (eq. 25)
 // with d settable at run time (set_mixing). d = 1 is the Kalman filter exactly.
@@ -15,14 +15,14 @@
 //   innovation:   n, same names and units                     # y_k - H x^-_k
 // @endsystem
 //
-// Per axis (the 18-state filter of eq. 23 separates into six 3-state filters, spec §3.1):
+// Per axis (the 18-state filter of eq. 23 separates into six 3-state filters):
 //   x = [p, v, a],  Phi = [[1, T, T^2/2], [0, 1, T], [0, 0, 1]],  Upsilon = [T^3/6, T^2/2, T]',
 //   H = [1 0 0]                                                           (eq. 20-23)
 //   x^-_k = Phi x^+_{k-1},   x^+_k = x^-_k + K (y_k - H x^-_k)          (eq. 24)
-// Kalman gain (spec §3.3): P = Phi P Phi' - Phi P H'(H P H' + r)^-1 H P Phi' + Upsilon q Upsilon',
+// Kalman gain: P = Phi P Phi' - Phi P H'(H P H' + r)^-1 H P Phi' + Upsilon q Upsilon',
 //   K^K = P H' (H P H' + r)^-1   (lode::math::steady_state_kalman; eq. 26-28).
-// H-infinity gain (spec §3.4, the standard form of the paper's cited source, Simon 2001; the
-// paper's own eq. 30 is lost, caveat C2), with performance level theta, error weight S,
+// H-infinity gain (the standard form of the paper's cited source, Simon 2001: the paper's own
+// eq. 30 was not available here), with performance level theta, error weight S,
 // process weight W = Upsilon w Upsilon' and measurement weight V = v:
 //   L = (I - theta S P + H' V^-1 H P)^-1,  K^inf = P L H' V^-1,  P <- Phi P L Phi' + W
 // iterated to steady state from the Kalman P; feasible only while
@@ -36,7 +36,7 @@
 // update x^-_{k+1} = Phi x^-_k for that cycle instead of faulting.
 //
 // Worked example, 800 Hz, r = 1e-6 m^2 (eq. 26), q = 1e3 m^2/s^6 (eq. 27, x):
-//   K^K = [0.0760, 2.403 1/s, 38.00 1/s^2], rho = 0.9804 (spec §3.3 table);
+//   K^K = [0.0760, 2.403 1/s, 38.00 1/s^2], rho = 0.9804 (an independent DARE agrees);
 //   theta = 5e5 1/m^2, S = diag(1, 0, 0): K^inf = [0.1360, 3.832 1/s, 53.97 1/s^2], rho = 0.9799.
 //
 // Threads: configure()/activate()/describe() on the loader thread; step() on the RT thread;
@@ -74,7 +74,7 @@ struct AxisModel {
   static AxisModel make(double t_s);
 };
 
-/// Steady-state Kalman (H2) gain of one axis (spec §3.3).
+/// Steady-state Kalman (H2) gain of one axis (eqs. 26-28).
 struct KalmanDesign {
   bool ok = false;
   std::string error;     ///< why not, when !ok
@@ -83,7 +83,7 @@ struct KalmanDesign {
 };
 KalmanDesign design_kalman(const AxisModel& model, double q, double r);
 
-/// Weights of the H-infinity design of one axis (spec §3.4).
+/// Weights of the H-infinity design of one axis (Simon 2001's minimax form).
 struct HinfWeights {
   double theta = 0.0;                                ///< performance level (J < 1/theta)
   Vector3 error_weight = Vector3(1.0, 0.0, 0.0);     ///< diagonal of S: [position, velocity, acceleration]

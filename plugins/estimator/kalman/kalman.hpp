@@ -1,5 +1,5 @@
-// estimator.kalman: per-axis linear Kalman filter after the GLSDC (Kawato 2005, §4.1,
-// Table III, eq. 4.35-4.41; spec seed-000 §4).
+// estimator.kalman: per-axis linear Kalman filter after the GLSDC (Kawato 2005,
+// Table III, eq. 4.35-4.41).
 //
 // @system
 // name: estimator.kalman
@@ -28,7 +28,8 @@
 // R_k(i,i)) into a time update of that axis alone (x^-_{k+1} = Phi x^-_k, P^-_{k+1} =
 // Phi P^-_k Phi^T + Upsilon q Upsilon^T): the filter coasts instead of faulting.
 // At 800 Hz (T = 1.25 ms) with q = 100 m^2/s^6 and r = 2.2e-10 m^2 the steady gain is
-// K = [0.197, 17.2 1/s, 755 1/s^2] and the error poles sit at |ln z|/T ~ 88 rad/s (spec §4.3).
+// K = [0.197, 17.2 1/s, 755 1/s^2] and the error poles sit at |ln z|/T ~ 88 rad/s (r fitted
+// here to Table IV; the thesis prints no gains).
 //
 // Threads: configure()/activate()/describe() on the loader thread, step() on the RT thread.
 #pragma once

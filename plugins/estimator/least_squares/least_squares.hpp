@@ -5,8 +5,8 @@
 // once: the state is the union of the models' state elements (a name shared by two models
 // is one state), the channels are the models' channels concatenated in the order of
 // `models` (the order io.sim concatenates them with the same `sensors` list). Silva-Rivas &
-// Kim (2013) compute their 6-DOF pose this way from the Hall sensors (x, y, phi) and the
-// lasers (z, theta, psi) before the notch and the hybrid filter (spec seed-003 §3.1, §7 item 3).
+// Kim (2013) feed their notch and hybrid filter a 6-DOF pose from the Hall sensors (x, y, phi)
+// and the lasers (z, theta, psi) without giving the conversion; this block computes it.
 //
 // @system
 // name: estimator.least_squares
@@ -22,8 +22,8 @@
 //   dz = (H' W H)^-1 H' W (y - f),   z <- z + dz,   W = diag(1 / noise_std_v^2)
 // With models that are linear in the state (sensor.laser_gap at small angles) one iteration
 // is the exact least-squares solution; for the Hall field model it is the thesis's one
-// Gauss-Newton step per sample (spec seed-000 §3.2), which converges as long as the pose moves
-// much less than a quarter pitch per tick.
+// Gauss-Newton step per sample (Kawato 2005, Appendix B/C), which converges as long as the
+// pose moves much less than a quarter pitch per tick.
 //
 // Threads: configure()/activate()/describe() on the loader thread; step() on the RT thread.
 #pragma once

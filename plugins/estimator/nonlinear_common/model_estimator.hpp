@@ -2,7 +2,8 @@
 // process model x_{k+1} = f(x_k, u_k) (lode::ProcessModel) observed through a plugin
 // measurement model y_k = h(x_k) (lode::MeasurementModel), with additive noise
 //   x_{k+1} = f(x_k, u_k) + w_k,  E[w w'] = Q_k;    y_k = h(x_k) + n_k,  E[n n'] = R
-// (seed 002, eq. 17, spec §3.1; the noise enters additively, the state is not augmented).
+// (Sensors 2016, 16, 1504, eq. 17; Q and R enter additively in eqs. 24 and 27, so the state is
+// not augmented).
 //
 // Header-only and not a plugin (no CMakeLists.txt here): each estimator includes it with
 // `#include "../nonlinear_common/model_estimator.hpp"`. configure()/activate()/describe() run
@@ -17,7 +18,8 @@
 //  - each element the measurement model depends on is a process state of that name, or else
 //    a process input (so h may depend on u, as the Hall sensor's coil compensation does).
 // Cycle k: (k > 0) predict x_{k|k-1} from x_{k-1|k-1} with u_{k-1}; update with y_k; output
-// x_{k|k}, sqrt(diag P_{k|k}) and the innovation y_k - h(x_{k|k-1}) (spec §3.7 order).
+// x_{k|k}, sqrt(diag P_{k|k}) and the innovation y_k - h(x_{k|k-1}) (an assumed order: the
+// paper's text does not spell out the per-sample order of its loop).
 #pragma once
 
 #include <Eigen/Cholesky>

@@ -208,7 +208,7 @@ void NonlinearPassiveObserver::read_gains(Params& params, const AxisValues& mass
   gains_from_tuning_ = !frequency.empty() || !damping.empty();
   if (direct && gains_from_tuning_) {
     params.fail("d0", "give either d0 and a0_per_s (Table 2) or observer_frequency_hz and observer_damping "
-                      "(a = 2 zeta w, d = m w^2, spec §3.5), not both");
+                      "(a = 2 zeta w, d = m w^2), not both");
     return;
   }
   if (!direct && !gains_from_tuning_) {
@@ -228,7 +228,7 @@ void NonlinearPassiveObserver::read_gains(Params& params, const AxisValues& mass
                    "must be > 0 Hz, got " + text_of(observer_frequency_hz_[i]));
       params.check(observer_damping_[i] > 0.0, "observer_damping",
                    "must be > 0, got " + text_of(observer_damping_[i]));
-      a[i] = 2.0 * observer_damping_[i] * w;  // spec §3.5 tuning rule
+      a[i] = 2.0 * observer_damping_[i] * w;  // tuning rule (derived, not in the paper)
       d[i] = mass[i] * w * w;
     }
     return;
@@ -239,9 +239,9 @@ void NonlinearPassiveObserver::read_gains(Params& params, const AxisValues& mass
   d = per_axis(params, "d0", d0);
   a = per_axis(params, "a0_per_s", a0);
   for (std::size_t i = 0; i < kAxes; ++i) {
-    // The passivity argument (spec §3.3) needs d_i > 0 and a_i > 0.
-    params.check(d[i] > 0.0, "d0", "every D0 entry must be > 0 (passivity, spec §3.3), got " + text_of(d[i]));
-    params.check(a[i] > 0.0, "a0_per_s", "every A0 entry must be > 0 1/s (spec §3.3), got " + text_of(a[i]));
+    // The passivity argument (Eq. 19) needs d_i > 0 and a_i > 0.
+    params.check(d[i] > 0.0, "d0", "every D0 entry must be > 0 (passivity, Eq. 19), got " + text_of(d[i]));
+    params.check(a[i] > 0.0, "a0_per_s", "every A0 entry must be > 0 1/s (passivity), got " + text_of(a[i]));
   }
 }
 
@@ -357,7 +357,7 @@ Status NonlinearPassiveObserver::configure(ConfigureContext& ctx) {
                                       model_->process_state()[i].name + ": a0 T = " + text_of(a[i] * period_s_) +
                                       ", error eigenvalue " + complex_text(worst) + " (|z| = " +
                                       text_of(std::abs(worst)) +
-                                      " >= 1, spec §3.5); use exact or backward_euler, or smaller gains");
+                                      " >= 1); use exact or backward_euler, or smaller gains");
       }
     }
   }
@@ -480,7 +480,7 @@ void NonlinearPassiveObserver::describe(Json& out) const {
                       ? "P^ implicit in A0: (P^- + aT Z)/(1 + aT); V^ += T D0/M (Z - P^)"
                       : "explicit Euler of the injection: P^ += aT nu_k, V^ += T D0/M nu_k";
   out["force_free_acceleration_at_rest"] = std::vector<double>(rest_acceleration_.begin(), rest_acceleration_.end());
-  out["gains_from"] = gains_from_tuning_ ? "tuning rule a = 2 zeta w, d = m w^2 (spec §3.5)" : "d0, a0_per_s";
+  out["gains_from"] = gains_from_tuning_ ? "tuning rule a = 2 zeta w, d = m w^2 (not in the paper)" : "d0, a0_per_s";
   out["period_s"] = period_s_;
   out["initialize_from_first_measurement"] = initialize_from_first_measurement_;
   Json axes = Json::array();
@@ -505,7 +505,7 @@ void NonlinearPassiveObserver::describe(Json& out) const {
     }
     j["error_poles_rad_s"] = std::move(poles);  // roots of m s^2 + m a s + d
     j["time_constants_s"] = std::move(time_constants);
-    j["crossover_rad_s"] = ax.d / (ax.mass * ax.a);  // below: s Z, above: F / m (spec §3.5)
+    j["crossover_rad_s"] = ax.d / (ax.mass * ax.a);  // below: s Z, above: F / m
     Json z = Json::array();
     for (const auto& p : ax.discrete_poles) {
       Json pj = complex_json(p);
@@ -521,7 +521,7 @@ void NonlinearPassiveObserver::describe(Json& out) const {
     Json b = Json::object();
     b[rotation ? "pose_error_rad_per_n_m" : "pose_error_m_per_n"] = bias(0);
     b[rotation ? "velocity_error_rad_s_per_n_m" : "velocity_error_m_s_per_n"] = bias(1);
-    b["continuous_velocity_error"] = -ax.a / ax.d;  // v~ = -a b / d (spec §3.5, check S8)
+    b["continuous_velocity_error"] = -ax.a / ax.d;  // v~ = -a b / d (check S8)
     j["steady_error_per_unit_force_bias"] = std::move(b);
     axes.push(std::move(j));
   }
@@ -536,9 +536,9 @@ constexpr ParamDoc kParams[] = {
      "e.g. plant.rigid_body6; the observer's copy of Eq. 9-10"},
     {"d0", "number|list<number>[6]", "none",
      "D0 (Eq. 11) per axis [N/m for x, y, z; N*m/rad for phi, theta, psi], > 0; Table 2: 100"},
-    {"a0_per_s", "number|list<number>[6]", "none", "A0 (Eq. 13) per axis [1/s], > 0; Table 2: 1e4 (or 1e-4, spec A2)"},
+    {"a0_per_s", "number|list<number>[6]", "none", "A0 (Eq. 13) per axis [1/s], > 0; Table 2: 1e4 (or 1e-4: README)"},
     {"observer_frequency_hz", "number|list<number>[6]", "none",
-     "instead of d0/a0: error-dynamics natural frequency f_o; d = m (2 pi f_o)^2 (spec §3.5)"},
+     "instead of d0/a0: error-dynamics natural frequency f_o; d = m (2 pi f_o)^2 (not in the paper)"},
     {"observer_damping", "number|list<number>[6]", "none", "with observer_frequency_hz: zeta_o; a = 2 zeta_o w_o"},
     {"integrator", "text", "exact",
      "exact (sampled error dynamics), backward_euler (implicit in A0) or forward_euler (refused when unstable)"},

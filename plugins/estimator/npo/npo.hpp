@@ -1,6 +1,6 @@
 // estimator.npo: the nonlinear passive observer (NPO) of Gutierrez & Li (2024) for the 6-DOF
-// body velocity of a magnetically suspended stage, Eq. 11-14 (spec seed-004 §3), with an exact
-// discrete update (forward Euler is unstable at the paper's gains, spec §3.5).
+// body velocity of a magnetically suspended stage, Eq. 11-14, with an exact discrete update
+// (forward Euler is unstable at the paper's gains; the paper does not say how it discretised).
 //
 // @system
 // name: estimator.npo
@@ -14,16 +14,17 @@
 //   pose:        same names and units as the measurement         # P^, Eq. 14
 //   innovation:  same names and units as the measurement         # Z_k - P^_k after the update
 //   fd_velocity: [<name>_dot, <unit>/s]                           # (Z_k - Z_{k-1}) / T, the paper's "measured
-//                                                                #    velocity" baseline (spec §5)
+//                                                                #    velocity" baseline (Figs. 5-10)
 //   state:       the process model's state [P^, V^_B] (12)       # same layout as io.sim's plant_state, so a
 //                                                                #    monitor can compare estimate and truth
 // @endsystem
 //
-// Continuous observer (Eq. 11-14, signs per spec §3.1):
+// Continuous observer (Eq. 11-14, with the signs that make Eq. 15-18 follow):
 //   M dV^/dt = F - C(V^) V^ + G_B + D0 (Z - P^),   dP^/dt = J(Theta^) V^ + A0 (Z - P^)
 // It is the plant (Eq. 9-10) plus an output injection L = [A0; M^-1 D0] of the innovation. The
 // plant part is the process model from `models:` (e.g. plant.rigid_body6), so the observer is a
-// copy of exactly the physics the simulator runs; C is evaluated at V^ (spec A6).
+// copy of exactly the physics the simulator runs; C is evaluated at V^ (the paper writes C(V_B)
+// of the true velocity, which is not measurable).
 //
 // Discrete update, every period T with Z_{k+1}, the force F_k held over [t_k, t_{k+1}] and the
 // previous posterior residual nu_k = Z_k - P^_k:
@@ -31,24 +32,26 @@
 //   nu^- = Z_{k+1} - P^-
 //   P^_{k+1} = P^- + g_p nu_k + h_p nu^-,    V^_{k+1} = V^- + g_v nu_k + h_v nu^-      (per axis)
 // With a perfect model and noise-free Z the innovations stay 0: the estimate is exact whatever the
-// gains (the complementary-filter property, spec §3.5, check S1). Per axis (J = I, C = 0) the
+// gains (the complementary-filter property, check S1). Per axis (J = I, C = 0) the
 // estimation error e = (P - P^, V - V^) then obeys e_{k+1} = E e_k with
 //   E = Ad - [g + h, T h],   Ad = [[1, T], [0, 1]]
 // and the gains are chosen by `integrator`:
 //   exact:          E = exp(A_e T), A_e = [[-a, 1], [-d/m, 0]]: the continuous error dynamics
 //                   (Eq. 15-18) sampled exactly: h = (Ad - E).col(1) / T, g = (Ad - E).col(0) - h.
-//                   The composite W = 1/2 m v~^2 + 1/2 d p~^2 (spec §3.3) is non-increasing.
-//   backward_euler: implicit in the stiff A0 term (spec §3.5): P^ = (P^- + aT Z)/(1 + aT),
+//                   The composite W = 1/2 m v~^2 + 1/2 d p~^2 (a Lyapunov function derived here
+//                   to close the paper's passivity argument) is non-increasing.
+//   backward_euler: implicit in the stiff A0 term: P^ = (P^- + aT Z)/(1 + aT),
 //                   then V^ = V^- + T (d/m) (Z - P^): g = 0, h = [aT, T d/m] / (1 + aT).
 //   forward_euler:  explicit injection g = [aT, T d/m], h = 0. At a T = 4 (Table 2) an eigenvalue
 //                   sits at 1 - aT = -3: configure() refuses every unstable E with the eigenvalue.
 // `dynamics: linear` replaces the process model by six decoupled double integrators (J = I, C = 0)
 // with the same M (and the model's force-free acceleration at rest, i.e. gravity if it has any):
-// the "per-axis linear fallback" (spec §7.5) and the reference of check S7.
+// the per-axis linear fallback and the reference of check S7 (tests/integration/seed004_test.cpp).
 //
 // Gains: d0 [N/m | N*m/rad] and a0_per_s [1/s] per axis (Table 2: d0 = 100, a0 = 1e4 or 1e-4,
-// spec A2/A8), or the tuning rule of spec §3.5: a = 2 zeta w, d = m w^2 (observer_frequency_hz,
-// observer_damping). M is read off the process model at rest (M_i = T / dV_i per unit F_i).
+// units not stated: README), or a tuning rule derived here: a = 2 zeta w, d = m w^2
+// (observer_frequency_hz, observer_damping). M is read off the process model at rest
+// (M_i = T / dV_i per unit F_i).
 //
 // Threads: configure()/activate()/describe() on the loader thread, step() on the RT thread.
 #pragma once
@@ -84,7 +87,7 @@ struct AxisDesign {
   double h_p = 0.0, h_v = 0.0;  ///< gains on the a-priori innovation nu^- [1], [1/s]
   /// Error transition e_{k+1} = E e_k, e = (p~, v~).
   Eigen::Matrix2d transition = Eigen::Matrix2d::Identity();
-  /// Roots of m s^2 + m a s + d (spec §3.5) [rad/s] and the eigenvalues of E.
+  /// Roots of m s^2 + m a s + d (the per-axis error dynamics) [rad/s] and the eigenvalues of E.
   std::array<std::complex<double>, 2> continuous_poles{};
   std::array<std::complex<double>, 2> discrete_poles{};
   [[nodiscard]] double spectral_radius() const;
@@ -95,7 +98,7 @@ AxisDesign design_axis(double mass, double d, double a, double period_s, Integra
 
 /// Steady estimation error (p~, v~) of the discrete observer for a constant force bias b = 1
 /// (the observer is told F + b): e = -(I - E)^-1 (I - h C) Bd. The continuous answer is
-/// p~ = -b/d, v~ = -a b/d (spec §3.5).
+/// p~ = -b/d, v~ = -a b/d.
 Eigen::Vector2d bias_response(const AxisDesign& axis);
 
 /// True when W = 1/2 m v~^2 + 1/2 d p~^2 cannot grow over one step: E' diag(d, m) E <= diag(d, m).

@@ -63,7 +63,7 @@ void UnscentedEstimator::describe_filter(Json& out) const {
   out["sum_mean_weights"] = weights_.mean_sum();
   out["spread_sigmas"] = std::sqrt(weights_.spread());
   out["square_root"] = "lower Cholesky factor of (L + lambda) P, column i";
-  out["sums"] = "about the centre point chi_0 (deviation form, spec §3.3)";
+  out["sums"] = "about the centre point chi_0 (deviation form)";
   out["redraw_after_prediction"] = redraw_;
   out["measurement_update_points"] = redraw_ ? "redrawn around (x^-, P^-): Q_k reaches P_yy, P_xy"
                                              : "the propagated points (eq. 25, the paper's form)";

@@ -1,5 +1,5 @@
 // estimator.ukf: unscented Kalman filter over a plugin process model and a plugin measurement
-// model, additive noise (seed 002, eq. 17-31; spec seed-002-hall-ukf.md §3).
+// model, additive noise (Sensors 2016, 16, 1504, eq. 17-31).
 //
 // @system
 // name: estimator.ukf
@@ -16,7 +16,8 @@
 //   chi_0 = x,  chi_i = x + (sqrt((L+lambda) P))_i,  chi_{L+i} = x - (sqrt((L+lambda) P))_i
 //   W0m = lambda/(L+lambda),  W0c = W0m + 1 - alpha^2 + beta,  Wi = 1/(2(L+lambda))
 // with sqrt the lower Cholesky factor (column i). At the paper's alpha = 0.002, beta = 2,
-// kappa = 0, L = 3: W0m = -249999, W0c = -249996, Wi = 41666.67 (spec §3.3).
+// kappa = 0, L = 3: W0m = -249999, W0c = -249996, Wi = 41666.67 (printed rounded: -2.499e5,
+// -2.5e5, 0.416e5).
 // Time update (eq. 22-24): chi_i <- f(chi_i, u_{k-1}); x^- = sum W^m chi_i;
 //   P^- = sum W^c (chi_i - x^-)(chi_i - x^-)' + Q_k. The propagated points go through h
 // without being redrawn (eq. 25-26, the paper's form: Q_k then does not reach P_yy and P_xy);
@@ -24,7 +25,7 @@
 // Kalman filter on a linear model. Measurement update (eq. 27-31):
 //   P_yy = sum W^c (Y_i - y^)(Y_i - y^)' + R,  P_xy = sum W^c (chi_i - x^-)(Y_i - y^)'
 //   K = P_xy P_yy^-1,  x = x^- + K (y - y^),  P = P^- - K P_yy K'.
-// Sums about the centre point (spec §3.3 hazard): with alpha = 0.002 the weights are ~1e5 with
+// Sums about the centre point (not in the paper): with alpha = 0.002 the weights are ~1e5 with
 // opposite signs and the points sit 0.35 % of a sigma from the mean, so sum W_i chi_i on raw
 // values cancels catastrophically (in float: ~1.5 % of |x|). Every sum here is taken over
 // deviations d_i = chi_i - chi_0:  x^- = chi_0 + sum_{i>=1} Wi d_i  (sum W^m = 1 exactly), and
@@ -107,7 +108,7 @@ class UnscentedCore {
 
   /// `redraw`: draw the points again around (x^-, P^-) after the prediction, so that the
   /// measurement update sees Q; false is the paper's eq. 25 (the propagated points go through h
-  /// as they are, spec §3.4), which leaves Q out of P_yy and P_xy.
+  /// as they are), which leaves Q out of P_yy and P_xy.
   void configure(int states, int channels, const Weights& weights, Sums sums = Sums::about_centre,
                  bool redraw = false) {
     redraw_ = redraw;

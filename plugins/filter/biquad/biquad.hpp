@@ -1,6 +1,6 @@
 // filter.biquad: a general second-order section per channel, designed (low-pass, high-pass,
 // band-pass, notch; RBJ "Audio EQ Cookbook" forms by prewarped Tustin) or given as raw
-// coefficients (spec seed-003 §7.5: "biquad filter block ... or fed raw coefficients").
+// coefficients (e.g. the printed eq. 34 of Silva-Rivas & Kim 2013).
 //
 // @system
 // name: filter.biquad

@@ -37,7 +37,7 @@ Coefficients design(Form form, double f_notch_hz, double k, double zeta, double 
   }
   // Tustin prewarped at w: s = c (1 - z^-1)/(1 + z^-1), c = w / tan(w T / 2). Multiplying
   // through by (1 + z^-1)^2: s^2 -> c^2 (1 - 2 z^-1 + z^-2), s -> c (1 - z^-2),
-  // 1 -> 1 + 2 z^-1 + z^-2 (spec §4.3's closed form for eq31; lode::math::tustin gives the same).
+  // 1 -> 1 + 2 z^-1 + z^-2 (the closed form for eq31; lode::math::tustin gives the same).
   const double c = w / std::tan(0.5 * w / rate_hz);
   const double c2 = c * c;
   const double b0 = n0 * c2 + n1 * c + n2, b1 = 2.0 * (n2 - n0 * c2), b2 = n0 * c2 - n1 * c + n2;
@@ -394,5 +394,5 @@ constexpr PortDoc kPorts[] = {
 }  // namespace lode::plugins
 
 LODE_PLUGIN(lode::plugins::NotchFilter, "filter.notch", lode::PluginKind::block, "0.1.0",
-            "Per-channel second-order notch by prewarped Tustin (seed-003 eq. 31-34) or raw coefficients",
+            "Per-channel second-order notch by prewarped Tustin (Silva-Rivas & Kim eq. 31-34) or raw coefficients",
             lode::plugins::kParams, lode::plugins::kPorts)

@@ -1,6 +1,5 @@
 // filter.notch: second-order digital notch per channel, designed from (f_notch, k, zeta, fs) by
-// Tustin prewarped at f_notch, or given as raw coefficients (Silva-Rivas & Kim 2013, eqs. 31-34;
-// spec seed-003 §4).
+// Tustin prewarped at f_notch, or given as raw coefficients (Silva-Rivas & Kim 2013, eqs. 31-34).
 //
 // @system
 // name: filter.notch
@@ -14,13 +13,13 @@
 //   eq31  (default, the paper's eq. 31):  H(s) = (k s^2 + w0^2) / (s^2 + 2 zeta w0 s + w0^2),
 //         w0 = w sqrt(k) (eq. 33, from the null condition eq. 32: -k w^2 + w0^2 = 0): an exact
 //         null at f_notch, DC gain 1, high-frequency gain k (k = 0.1: -20 dB). Its poles sit at
-//         w0 (15.8 Hz for 50 Hz, k = 0.1): a low-pass with a null, not a narrow notch (§4.1).
+//         w0 (15.8 Hz for 50 Hz, k = 0.1): a low-pass with a null, not a narrow notch.
 //   depth (the textbook notch):  H(s) = (s^2 + 2 k zeta w s + w^2) / (s^2 + 2 zeta w s + w^2):
 //         gain k at f_notch, 1 at DC and at high frequency, width set by zeta.
 // Discretised by the bilinear transform prewarped at w, in closed form (equal to lode::math::tustin
 // within 1e-12, tested; closed so that set_tunable() can redesign on the RT thread):
 //   s = c (z - 1)/(z + 1), c = w / tan(w T / 2), so H(e^{jwT}) = H(jw) exactly at f_notch.
-// For eq31 this is the spec's closed form (§4.3): Kp = c, b0 = b2 = k Kp^2 + w0^2,
+// For eq31 this gives, in closed form: Kp = c, b0 = b2 = k Kp^2 + w0^2,
 // b1 = 2 w0^2 - 2 k Kp^2, a0 = Kp^2 + 2 zeta w0 Kp + w0^2, a1 = 2 w0^2 - 2 Kp^2,
 // a2 = Kp^2 - 2 zeta w0 Kp + w0^2, all divided by a0; DC gain exactly 1.
 // Or raw coefficients [b0, b1, b2, a1, a2] (a0 = 1), e.g. the printed eq. 34.

@@ -312,8 +312,8 @@ StepStatus SimBoard::sample(std::int64_t time_ns, bool in_cycle) noexcept {
     slot.model->evaluate(sensor_state_.data(), clean_signals_.data() + slot.first_channel);
   }
 
-  // Mains pick-up is common to every channel (the same 60 Hz field couples into all wires,
-  // spec §2.2). Reduce the cycle count before taking the sine: exact phase on long runs.
+  // Mains pick-up is common to every channel (the same 60 Hz field couples into all wires, as
+  // in Kawato 2005). Reduce the cycle count before taking the sine: exact phase on long runs.
   double mains_v = 0.0;
   if (with_noise && mains_amplitude_v_ > 0.0) {
     const double cycles = mains_frequency_hz_ * static_cast<double>(time_ns) * 1e-9;

@@ -95,8 +95,8 @@ void EncoderStage::describe(Json& out) const {
   out["frequency_hz"] = config_.frequency_hz;
   out["phase_rad"] = config_.phase_rad;
   const double omega = 2.0 * std::numbers::pi * config_.frequency_hz;
-  // Peaks of the truth: what the filter's Singer model must cover (spec §3.5) and what the
-  // baseline's cycle counter must resolve (|v| T < pitch / 2, spec §3.4).
+  // Peaks of the truth: what the filter's Singer model must cover (the authors' tuning advice)
+  // and what the baseline's cycle counter must resolve (|v| T < pitch / 2).
   out["peak_velocity_m_s"] = std::abs(config_.velocity_m_s) + omega * config_.amplitude_m;
   out["peak_acceleration_m_s2"] = omega * omega * config_.amplitude_m;
   out["inputs"] = "none (prescribed motion, open-loop experiment of the paper's Fig. 2)";

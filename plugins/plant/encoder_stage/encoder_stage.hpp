@@ -1,10 +1,10 @@
 // plant.encoder_stage: a stage axis that moves along a prescribed trajectory, the "signal
-// generator" of Zimmerman, Oshman & Brandes 2006 (Fig. 2, spec seed-001 §5.1-§5.2).
+// generator" of Zimmerman, Oshman & Brandes 2006 (Fig. 2).
 //
 // The paper's simulation is open loop: a signal generator produces the true position x(t),
 // an encoder turns it into sin/cos, a sampler adds noise and quantises, and the decoders are
 // compared with the truth. The test inputs are sinusoids x = A sin(2 pi f t) and a constant
-// velocity ramp (§5.2). This plant produces all of them (and their sums) exactly:
+// velocity ramp (Tables 2-4). This plant produces all of them (and their sums) exactly:
 //
 //   x(t) = offset_m + velocity_m_s t + amplitude_m sin(2 pi frequency_hz t + phase_rad)
 //   v(t) = velocity_m_s + 2 pi f A cos(2 pi f t + phase)

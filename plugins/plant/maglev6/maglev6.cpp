@@ -309,16 +309,16 @@ void Maglev6::describe(Json& out) const {
 namespace {
 
 constexpr ParamDoc kParams[] = {
-    {"mass_kg", "number", "1.52", "moving mass M (spec §1.1), > 0"},
+    {"mass_kg", "number", "1.52", "moving mass M (the paper's), > 0"},
     {"inertia_xx_kg_m2", "number", "0.0037", "principal inertia about x, > 0"},
     {"inertia_yy_kg_m2", "number", "0.0019", "principal inertia about y, > 0"},
     {"inertia_zz_kg_m2", "number", "0.0022", "principal inertia about z, > 0"},
     {"stiffness_z_n_per_m", "number", "620", "air-bearing stiffness Kz, >= 0"},
     {"stiffness_theta_x_n_m_per_rad", "number", "65", "torsional stiffness about x (paper K_theta), >= 0"},
     {"stiffness_theta_y_n_m_per_rad", "number", "87", "torsional stiffness about y (paper K_psi), >= 0"},
-    {"b_planar_acc_per_a", "list<number>[9]", "spec §1.5 surrogate",
+    {"b_planar_acc_per_a", "list<number>[9]", "surrogate fitted to eq. 17 (README)",
      "row-major 3x3: rows x'' [m/s^2], y'' [m/s^2], theta_z'' [rad/s^2] per ampere of iq_a, iq_b, iq_c; invertible"},
-    {"b_vertical_acc_per_a", "list<number>[9]", "spec §1.5 surrogate",
+    {"b_vertical_acc_per_a", "list<number>[9]", "surrogate fitted to eq. 19 (README)",
      "row-major 3x3: rows z'' [m/s^2], theta_x'' [rad/s^2], theta_y'' [rad/s^2] per ampere of id_a, id_b, id_c; "
      "invertible"},
     {"initial", "list<number>[6]", "[0, 0, 0, 0, 0, 0]", "initial x, y [m], theta_z [rad], z [m], theta_x, theta_y [rad]"},
@@ -339,5 +339,5 @@ constexpr PortDoc kPorts[] = {
 
 LODE_PLUGIN(lode::plugins::Maglev6, "plant.maglev6", lode::PluginKind::plant, "0.1.0",
             "Six-axis maglev platen on air bearings (Silva-Rivas & Kim 2013, eqs. 2-5) with the "
-            "surrogate input matrices of spec seed-003 §1.5; exact ZOH; also a ProcessModel",
+            "surrogate input matrices fitted to its printed LQ gains; exact ZOH; also a ProcessModel",
             lode::plugins::kParams, lode::plugins::kPorts)

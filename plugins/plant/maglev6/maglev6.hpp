@@ -1,15 +1,15 @@
 // plant.maglev6: the six-axis maglev platen of Silva-Rivas & Kim (2013) on air bearings.
 //
-// Rigid body with decoupled axes (paper eqs. 2-5, spec seed-003 §1.3):
+// Rigid body with decoupled axes (paper eqs. 2-5):
 //   M x'' = fx,  M y'' = fy,  Izz tz'' = tz                         planar: pure mass
 //   M z'' = fz - Kz z,  Ixx tx'' = tx - Ktx tx,  Iyy ty'' = ty - Kty ty   vertical: air-bearing springs
-// The generalised forces come from the motor currents through the surrogate input matrices of
-// spec §1.5 (fitted by inverse LQR; the paper gives neither the winding density nor the
-// force/torque allocation, caveat C5), plus an optional constant disturbance wrench:
+// The generalised forces come from the motor currents through surrogate input matrices (fitted
+// here by inverse LQR to the printed gains, README; the paper gives neither the winding density
+// nor the force/torque allocation), plus an optional constant disturbance wrench:
 //   [x'' y'' tz'']  = B_planar   [iq_a iq_b iq_c]'   (eq. 11 form, horizontal mode)
 //   [z'' tx'' ty''] = B_vertical [id_a id_b id_c]' - diag(Kz/M, Ktx/Ixx, Kty/Iyy) [z tx ty]'
 //
-// Axis names: the paper's phi, theta, psi are rotations about z, x and y (spec §0 note), written
+// Axis names: the paper's phi, theta, psi are rotations about z, x and y (its eqs. 3, 5), written
 // here theta_z, theta_x, theta_y so that no reader has to remember that convention.
 //
 // @plant
@@ -48,7 +48,7 @@ namespace lode::plugins {
 
 /// Physical parameters; the YAML keys have the same names.
 struct Maglev6Config {
-  double mass_kg = 1.52;                       ///< moving mass M (spec §1.1)
+  double mass_kg = 1.52;                       ///< moving mass M (the paper's)
   double inertia_xx_kg_m2 = 0.0037;            ///< principal inertia about x
   double inertia_yy_kg_m2 = 0.0019;            ///< principal inertia about y
   double inertia_zz_kg_m2 = 0.0022;            ///< principal inertia about z
@@ -56,12 +56,12 @@ struct Maglev6Config {
   double stiffness_theta_x_n_m_per_rad = 65.0; ///< torsional stiffness about x (K_theta)
   double stiffness_theta_y_n_m_per_rad = 87.0; ///< torsional stiffness about y (K_psi)
   /// Accelerations per ampere, rows [x'', y'', theta_z''], columns motors A, B, C
-  /// (spec §1.5, fitted at 800 Hz; [m/s^2/A] for x, y and [rad/s^2/A] for theta_z).
+  /// (surrogate fitted to eq. 17 at 800 Hz; [m/s^2/A] for x, y and [rad/s^2/A] for theta_z).
   Eigen::Matrix3d b_planar_acc_per_a = (Eigen::Matrix3d() << -0.554, 0.519, 12.903,  //
                                         13.369, 13.55, -0.088,                        //
                                         -209.292, 199.399, -183.1)
                                            .finished();
-  /// Rows [z'', theta_x'', theta_y''], columns motors A, B, C (spec §1.5, fitted at 1 kHz).
+  /// Rows [z'', theta_x'', theta_y''], columns motors A, B, C (surrogate fitted to eq. 19 at 1 kHz).
   Eigen::Matrix3d b_vertical_acc_per_a = (Eigen::Matrix3d() << 10.571, 10.597, 22.781,  //
                                           -256.201, -256.513, 475.071,                   //
                                           360.858, -343.005, 12.837)
@@ -81,7 +81,7 @@ class Maglev6 final : public PlantModel, public ProcessModel {
   enum Axis : std::size_t { kX = 0, kY, kThetaZ, kZ, kThetaX, kThetaY };
   enum Input : std::size_t { kIqA = 0, kIqB, kIqC, kIdA, kIdB, kIdC };
 
-  /// Continuous-time state-space model of one mode (spec §1.4): states [p(3), v(3)],
+  /// Continuous-time state-space model of one mode (eq. 11 form): states [p(3), v(3)],
   /// inputs the three currents of that mode, outputs the three positions.
   struct Mode {
     Eigen::Matrix<double, 6, 6> a = Eigen::Matrix<double, 6, 6>::Zero();

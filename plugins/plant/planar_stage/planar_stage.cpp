@@ -70,7 +70,7 @@ void PlanarStage::advance(double dt_s, const double* u) noexcept {
   // integrator is integrated exactly: p += v dt + a dt^2/2, v += a dt (eq. 4.44-4.47).
   const double ax = u[kFx] / config_.mass_kg;
   const double ay = u[kFy] / config_.mass_kg;
-  // Yaw moment: commanded torque, the X actuator's lever arm (force asymmetry, spec §5.1)
+  // Yaw moment: commanded torque, the X actuator's lever arm (the thesis's force asymmetry)
   // and the constant cable torque.
   const double alpha =
       (u[kTz] + config_.yaw_coupling_m * u[kFx] + config_.disturbance_torque_n_m) /
@@ -118,7 +118,7 @@ constexpr ParamDoc kParams[] = {
     {"initial_velocity", "list<number>[3]", "[0, 0, 0]",
      "initial vx [m/s], vy [m/s], omega_z [rad/s]"},
     {"yaw_coupling_m", "number", "0",
-     "lever arm by which fx also produces the yaw moment fx*lever (force asymmetry, spec §5.1)"},
+     "lever arm by which fx also produces the yaw moment fx*lever (force asymmetry, Kawato 2005)"},
     {"disturbance_torque_n_m", "number", "0", "constant yaw disturbance torque (cables)"},
 };
 

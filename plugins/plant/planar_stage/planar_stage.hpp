@@ -1,6 +1,6 @@
 // plant.planar_stage: the planar 3-DOF platen of Kawato's ATP stage on air bearings.
 //
-// A frictionless rigid body (thesis eq. 4.44-4.47, spec seed-000 §5.1):
+// A frictionless rigid body (thesis eq. 4.44-4.47):
 //   m x'' = fx,   m y'' = fy,   Iz th'' = tz + yaw_coupling_m * fx + disturbance_torque_n_m
 // The two optional terms model what the thesis blames for its unmodelled behaviour: a force
 // asymmetry (a single X actuator off the centre of mass, the ~22 rad/s mode) and the torque of
@@ -32,8 +32,8 @@ namespace lode::plugins {
 
 /// Physical parameters of the platen; the YAML keys have the same names.
 struct PlanarStageConfig {
-  double mass_kg = 6.20;          ///< platen, mirrors, coils, cables (thesis §4.4)
-  double inertia_kg_m2 = 0.054;   ///< Iz about the vertical axis (SolidWorks, thesis §4.4)
+  double mass_kg = 6.20;          ///< platen, mirrors, coils, cables (thesis eq. 4.44-4.45)
+  double inertia_kg_m2 = 0.054;   ///< Iz about the vertical axis (SolidWorks, thesis eq. 4.46-4.47)
   std::array<double, 3> initial{};           ///< x [m], y [m], theta_z [rad]
   std::array<double, 3> initial_velocity{};  ///< vx [m/s], vy [m/s], omega_z [rad/s]
   double yaw_coupling_m = 0.0;          ///< lever arm: fx also produces the moment fx * lever

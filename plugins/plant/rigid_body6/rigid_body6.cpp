@@ -16,7 +16,7 @@ Matrix3 rotation_body_to_fixed(double phi, double theta, double psi) noexcept {
   const double cf = std::cos(phi), sf = std::sin(phi);
   const double ct = std::cos(theta), st = std::sin(theta);
   const double cp = std::cos(psi), sp = std::sin(psi);
-  // R_BF = Rz(psi) Ry(theta) Rx(phi) (Appendix A, signs per spec A3).
+  // R_BF = Rz(psi) Ry(theta) Rx(phi) (Appendix A, signs from standard z-y-x kinematics).
   return Matrix3{{{ct * cp, sf * st * cp - cf * sp, cf * st * cp + sf * sp},
                   {ct * sp, sf * st * sp + cf * cp, cf * st * sp - sf * cp},
                   {-st, sf * ct, cf * ct}}};
@@ -205,9 +205,9 @@ namespace {
 constexpr ParamDoc kParams[] = {
     {"mass_kg", "number", "0.931", "stage mass m (Table 1), > 0"},
     {"inertia_kg_m2", "list<number>[3]", "[1.799e-3, 1.834e-3, 3.336e-3]",
-     "principal inertias Ix, Iy, Iz (Table 1, exponents per spec A1), each > 0"},
+     "principal inertias Ix, Iy, Iz (Table 1, x 10^-3 kg*m^2), each > 0"},
     {"gravity_m_s2", "number", "0",
-     "gravity along -z of the fixed frame (spec A7); 0 when the permanent magnets carry the weight"},
+     "gravity along -z of the fixed frame (z up, assumed); 0 when the permanent magnets carry the weight"},
     {"initial", "list<number>[6]", "[0, 0, 0, 0, 0, 0]", "initial pose x, y, z [m], phi, theta, psi [rad]"},
     {"initial_velocity", "list<number>[6]", "[0, 0, 0, 0, 0, 0]",
      "initial body velocity u, v, w [m/s], p, q, r [rad/s]"},

@@ -1,5 +1,5 @@
-// plant.rigid_body6: a free 6-DOF rigid body, the magnetically suspended stage of seed 004
-// (Gutierrez & Li 2024, Newton-Euler model of Eq. 9-10 and Appendix A; spec seed-004 §1.2).
+// plant.rigid_body6: a free 6-DOF rigid body, the magnetically suspended stage of Gutierrez &
+// Li 2024 (Newton-Euler model of Eq. 9-10 and Appendix A).
 //
 // Body frame {B} at the centre of gravity, principal axes (products of inertia ~ 0, Table 1):
 //   M dV_B/dt + C(V_B) V_B = F + G_B(Theta)                       (Eq. 9)
@@ -7,7 +7,7 @@
 // with V_B = [u v w p q r] (body velocities), P = [x y z phi theta psi] (fixed frame,
 // z-y-x Euler angles: yaw psi, then pitch theta, then roll phi), M = diag(m, m, m, Ix, Iy, Iz),
 // C(V) V = [m Omega x v ; Omega x (I Omega)] (Coriolis and gyroscopic, skew-symmetric C),
-// gravity G_B = m R_BF^T [0 0 -g] (z up, spec A7; g = gravity_m_s2, default 0 because the
+// gravity G_B = m R_BF^T [0 0 -g] (z up, assumed; g = gravity_m_s2, default 0 because the
 // permanent magnets of the hybrid actuators carry the weight and F is the coil force).
 //
 // @plant
@@ -55,7 +55,7 @@ using Matrix3 = std::array<std::array<double, 3>, 3>;
 
 struct Physics {
   double mass_kg = 0.931;                                     ///< Table 1
-  std::array<double, 3> inertia_kg_m2{1.799e-3, 1.834e-3, 3.336e-3};  ///< Ix, Iy, Iz (Table 1, spec A1)
+  std::array<double, 3> inertia_kg_m2{1.799e-3, 1.834e-3, 3.336e-3};  ///< Ix, Iy, Iz (Table 1, x 10^-3)
   double gravity_m_s2 = 0.0;                                  ///< 0: the magnets carry the weight
 };
 

@@ -293,7 +293,7 @@ void Suspension::propagate(double dt_s, const double* x, const double* u, double
 
 bool Suspension::process_jacobian(double dt_s, const double* x, const double* /*u*/, double* F) const noexcept {
   if (config_.process_discretization != SuspensionDiscretization::euler) return false;
-  // Spec §3.8 with the mass: F = I + t_s df/dx,
+  // The Jacobian of eq. 33 with the mass (derived here): F = I + t_s df/dx,
   //   d(v')/dd = (4 a d^-5 + 2 b i d^-3) / m,  d(v')/di = -b d^-2 / m,  d(i')/di = -R/L.
   const bool on_face = x[kGap] < config_.gap_limits_m[0];  // force held constant there
   const double d = std::max(x[kGap], config_.gap_limits_m[0]);
@@ -351,7 +351,7 @@ void Suspension::describe(Json& out) const {
   }
   out["coil_decay_1_per_s"] = config_.coil_decay_1_per_s;
   out["coil_gain_a_per_v_s"] = config_.coil_gain_a_per_v_s;
-  // Coil parameters implied by eq. 32 (spec §2.3): L = 1/gain, R = decay L.
+  // Coil parameters implied by eq. 32: L = 1/gain, R = decay L.
   out["coil_inductance_h"] = 1.0 / config_.coil_gain_a_per_v_s;
   out["coil_resistance_ohm"] = config_.coil_decay_1_per_s / config_.coil_gain_a_per_v_s;
   out["coil_time_constant_s"] = 1.0 / config_.coil_decay_1_per_s;
@@ -364,7 +364,7 @@ void Suspension::describe(Json& out) const {
   out["process_discretization"] = config_.process_discretization == SuspensionDiscretization::euler
                                       ? "euler (eq. 33), analytic Jacobian"
                                       : "rk4 (one step per period), numerical Jacobian";
-  // Where the magnet can be held, and how unstable it is there (spec §5.1: 22-30 mm).
+  // Where the magnet can be held, and how unstable it is there (the paper's steps: 22-30 mm).
   Json hold = Json::array();
   for (double gap_mm : {18.0, 20.0, 22.0, 24.0, 26.0, 28.0, 30.0, 32.0}) {
     const double d = 1e-3 * gap_mm;
@@ -411,5 +411,5 @@ constexpr PortDoc kPorts[] = {
 }  // namespace lode::plugins
 
 LODE_PLUGIN(lode::plugins::Suspension, "plant.suspension", lode::PluginKind::plant, "0.1.0",
-            "Magnet suspended under an electromagnet (seed 002, eq. 13/32/33): simulator and process model",
+            "Magnet suspended under an electromagnet (Sensors 2016, eq. 13/32/33): simulator and process model",
             lode::plugins::kParams, lode::plugins::kPorts)

@@ -1,5 +1,5 @@
-// plant.suspension: the magnet suspended under an electromagnet of seed 002 (Sensors 2016,
-// 16, 1504, Fig. 1a; spec seed-002-hall-ukf.md §2, §7.1), one physics for the simulator
+// plant.suspension: the magnet suspended under an electromagnet of Sensors 2016, 16, 1504
+// (Fig. 1a, eqs. 2-3, 13, 32-33), one physics for the simulator
 // (PlantModel, with its own state) and for the estimators (ProcessModel, stateless f).
 //
 // The gap d grows downwards from the electromagnet face; the permanent magnet is attracted
@@ -9,14 +9,14 @@
 //   v' = g - F_e(d, i) / m                                          (eq. 2, 32 with the mass)
 //   i' = -(R/L) i + (1/L) u      R/L = 165.6 1/s, 1/L = 61.61 1/(V s) (eq. 3, 32; back-EMF dropped)
 // The printed eq. 32 omits the mass, flips the sign of the current term and cannot hold the
-// magnet at 22-30 mm inside the PID's 0.5-3 V clamp (spec §2.3, §9 B2); this model divides by
+// magnet at 22-30 mm inside the PID's 0.5-3 V clamp (README); this model divides by
 // the mass and takes eq. 13's signs, and the pipeline picks a self-consistent (m, b): see
 // README "Self-consistent plant".
 //
 // Simulator: advance() integrates the ODE with `substeps` classical RK4 steps per period with
 // u held (ZOH); two end stops (gap_limits_m) stop the magnet at the coil face or on the floor.
 // Estimator: propagate() is the Euler step of eq. 33 (process_discretization: euler, the
-// paper's; analytic Jacobian of spec §3.8 with the mass) or one RK4 step (rk4; no analytic
+// paper's; analytic Jacobian derived here, with the mass) or one RK4 step (rk4; no analytic
 // Jacobian, an EKF then differentiates numerically).
 //
 // @plant
@@ -78,8 +78,8 @@ Expected<ForceCoefficientFit> fit_force_coefficients(const std::vector<double>& 
                                                      const std::vector<double>& b);
 
 /// Stage-1 fit of one FEM force curve (eq. 5, 7, 10): non-negative least squares of
-/// F = a d^-4 + b d^-2 (the QP of eq. 10 without its contradictory 1e-7 upper bound, spec
-/// §9 B9), and of the one-term F = c d^-4 (eq. 6, 8).
+/// F = a d^-4 + b d^-2 (the QP of eq. 10 without its 1e-7 upper bound, which contradicts the
+/// b of Table 3), and of the one-term F = c d^-4 (eq. 6, 8).
 struct ForceCurveFit {
   double a = 0.0;
   double b = 0.0;

@@ -197,7 +197,7 @@ namespace {
 constexpr ParamDoc kParams[] = {
     {"probes", "list<map>", "3-2-1 layout (z1 z2 z3 x1 x2 y1)",
      "{name, target_m: [x, y, z] body point of the flat target [m], axis: [nx, ny, nz] measuring axis}, 1 ... 16"},
-    {"nominal_gap_m", "number", "1e-3", "gap at home (spec §1.1: 1 mm), > 0"},
+    {"nominal_gap_m", "number", "1e-3", "gap at home (the paper's 1 mm), > 0"},
     {"zero_gap_m", "number", "1e-3", "gap that reads 0 V (centre of the 500-1500 um range)"},
     {"sensitivity_v_per_m", "number", "2e4", "probe + amplifier gain (10 V per 500 um), non-zero"},
 };
@@ -212,5 +212,5 @@ constexpr PortDoc kPorts[] = {
 }  // namespace lode::plugins
 
 LODE_PLUGIN(lode::plugins::CapacitiveGap, "sensor.capacitive_gap", lode::PluginKind::sensor, "0.1.0",
-            "Capacitive gap probes on flat targets of a 6-DOF body (seed 004), analytic Jacobian",
+            "Capacitive gap probes on flat targets of a 6-DOF body (Gutierrez & Li 2024), analytic Jacobian",
             lode::plugins::kParams, lode::plugins::kPorts)

@@ -1,8 +1,8 @@
 // sensor.capacitive_gap: capacitive gap probes looking at flat targets on a 6-DOF body
-// (seed 004: six probes, 500-1500 um range, 1 mm at home, flat targets >= 30 % larger than the
-// probe, spec seed-004 §1.1 and §2). The paper does not give the probe geometry (spec §6, "not
-// reproducible"): the default layout below is an assumption, a 3-2-1 arrangement like the
-// actuators (three vertical probes under the stage, three horizontal ones on its sides).
+// (Gutierrez & Li 2024: six probes, 500-1500 um range, 1 mm at home, flat targets >= 30 % larger
+// than the probe). The paper does not give the probe geometry: the default layout below is an
+// assumption, a 3-2-1 arrangement like the actuators (three vertical probes under the stage,
+// three horizontal ones on its sides).
 //
 // @model
 // state:    [x m, y m, z m, phi rad, theta rad, psi rad]   # the pose, z-y-x Euler angles (plant.rigid_body6)
@@ -37,7 +37,7 @@ struct GapProbe {
 
 struct CapacitiveGapConfig {
   std::vector<GapProbe> probes;
-  double nominal_gap_m = 1e-3;        ///< g0: the gap at home (spec §1.1: all gaps 1 mm)
+  double nominal_gap_m = 1e-3;        ///< g0: the gap at home (the paper's: all gaps 1 mm)
   double zero_gap_m = 1e-3;           ///< gap that reads 0 V (centre of the 500-1500 um range)
   double sensitivity_v_per_m = 2e4;   ///< 10 V over the +-500 um range
 };

@@ -32,7 +32,7 @@ constexpr int kErrorSamplesPerPitch = 4096;
 }  // namespace
 
 // ---------------------------------------------------------------------------------------
-// Physics of one 1-D Halbach array (spec seed-000 §1.2).
+// Physics of one 1-D Halbach array (Kawato 2005, eq. 3.2-3.14).
 
 double HalbachHarmonic::amplitude_t() const { return std::hypot(sin_t, cos_t); }
 
@@ -42,7 +42,7 @@ HalbachHarmonic halbach_field_harmonic(int n, double pitch_m, double gap_m,
   using Complex = std::complex<double>;
   const Complex j(0.0, 1.0);
   // Per-array peak magnetisation: each strong magnet carries the vertical parts of both
-  // orthogonal arrays, so one array sees half of it (spec §1.2 flag 2).
+  // orthogonal arrays, so one array sees half of it (README "Deviations" 2).
   const double m0 = br_strong_t / (2.0 * kMu0);
   // Square-wave Fourier coefficient of M_Z (eq. 3.5): + for n = 8m+1, 8m+3; - for 8m+5, 8m+7.
   const int n_mod_8 = n % 8;
@@ -50,7 +50,7 @@ HalbachHarmonic halbach_field_harmonic(int n, double pitch_m, double gap_m,
   const double mz = sign * std::numbers::sqrt2 * m0 / (kPi * n);
   // j^n for odd n.
   const Complex j_pow_n = (n % 4 == 1) ? j : -j;
-  // eq. 3.6 with the sign correction of spec §1.2 flag 1: M_Xn = -j^n r M_Zn puts the strong
+  // eq. 3.6 with its sign corrected (README "Deviations" 1): M_Xn = -j^n r M_Zn puts the strong
   // side (fundamental and 5th scaled by 1 + r) towards the sensors.
   const Complex mx = -j_pow_n * weak_ratio * mz;
   // eq. 3.10: decay with the gap, thickness factor of a finite magnet layer.
@@ -343,7 +343,7 @@ void HalbachHall::predict(const double* state, double* y, double* H) const noexc
   const double st = std::sin(theta);
   for (std::size_t i = 0; i < geometry_.size(); ++i) {
     const SensorGeometry& g = geometry_[i];
-    // Sensor world position (eq. 4.19-4.22 with X0, Y0 as in the thesis code, spec §2.5).
+    // Sensor world position (eq. 4.19-4.22 with X0, Y0 as in the thesis code).
     const double lever_x = g.x_m * ct - g.y_m * st;  // Xs - x = dYs/dtheta
     const double lever_y = g.x_m * st + g.y_m * ct;  // Ys - y = -dXs/dtheta
     const double xs = x + lever_x;
@@ -356,11 +356,11 @@ void HalbachHall::predict(const double* state, double* y, double* H) const noexc
     double slope_b = 0.0;
     field(pa, ys, field_a, slope_a);
     field(pb, xs, field_b, slope_b);
-    // Rotation of the field part into the sensor's axes (eq. 4.23-4.26, spec §2.5 flag iii).
+    // Rotation of the field part into the sensor's axes (eq. 4.23-4.26; README "Deviations" 3).
     y[2 * i] = pa.dc_v + field_a * ct + field_b * st;
     y[2 * i + 1] = pb.dc_v - field_a * st + field_b * ct;
     if (H == nullptr) continue;
-    // Corrected analytic Jacobian (spec §3.3) for any harmonics:
+    // Analytic Jacobian for any harmonics (README "Deviations" 4):
     // dA/d(x, y, th) = [0, A', A' (Xs - x)],  dB/d(x, y, th) = [B', 0, -B' (Ys - y)].
     const double da_dth = slope_a * lever_x;
     const double db_dth = -slope_b * lever_y;
@@ -461,7 +461,7 @@ constexpr ParamDoc kParams[] = {
     {"br_strong_t", "number", "1.43", "remanence of the vertical magnets (NdFeB50)"},
     {"br_weak_t", "number", "1.10", "remanence of the 45-degree magnets (NdFeB30)"},
     {"weak_ratio", "number", "sqrt(2)*br_weak_t/br_strong_t",
-     "horizontal/vertical magnetisation ratio r of one array (spec §1.2 flag 2)"},
+     "horizontal/vertical magnetisation ratio r of one array (README: Deviations 2)"},
     {"sensitivity_v_per_t", "number", "8.43",
      "end-to-end gain sensor x amplifier at the ADC, non-zero (sign = orientation)"},
     {"harmonics", "list<integer>", "[1, 5]", "odd spatial harmonics of the field model (1..99)"},

@@ -1,6 +1,6 @@
 // sensor.halbach_hall: two-axis Hall sensors on a platen over a Halbach magnet matrix.
 //
-// The measurement model of Kawato's ATP stage (thesis ch. 3-4, spec seed-000 §1-§3): each
+// The measurement model of Kawato's ATP stage (Kawato 2005, ch. 3-4): each
 // sensor measures the two in-plane field components of a concentrated-field Halbach matrix,
 // which is the superposition of two orthogonal 1-D Halbach arrays, so the X component depends
 // only on the sensor's world X and the Y component only on its world Y (eq. 3.13/3.14).
@@ -8,15 +8,15 @@
 // Per axis the field profile is a sum of odd spatial harmonics (w = 2 pi / pitch):
 //   f(u) = sum_n ( s_n sin(n w u') + k_n cos(n w u') ),   u' = u - phase offset
 // with s_n, k_n either from the Fourier physics of the magnets (eq. 3.5, 3.6, 3.9, 3.10 with
-// the sign correction of spec §1.2 flag 1, evaluated once at configure time) or from explicit
+// its sign corrected, README "Deviations", evaluated once at configure time) or from explicit
 // curve-fit coefficients c + alpha sin(w u') + beta sin(5 w u') (eq. 3.12, 4.1-4.4 without the
 // cross-axis terms zeta, delta, as the thesis finally used them).
 //
-// Channels of sensor s at body position (xs, ys), platen pose (x, y, theta) (spec §2.5):
+// Channels of sensor s at body position (xs, ys), platen pose (x, y, theta):
 //   Xs = x + xs cos th - ys sin th,     Ys = y + xs sin th + ys cos th     (eq. 4.19-4.22)
 //   A = f_a(Ys),  B = f_b(Xs)           (field parts before rotation, eq. 4.1-4.4)
 //   a = c_a + A cos th + B sin th,  b = c_b - A sin th + B cos th        (eq. 4.23-4.26,
-//   rotating only the field part, spec §2.5 flag iii; the DC term is an electronic offset)
+//   rotating only the field part, README "Deviations"; the DC term is an electronic offset)
 // a is the channel aligned with -y (sees B_Y), b the one aligned with -x (sees B_X).
 //
 // @sensor
@@ -121,7 +121,7 @@ class HalbachHall final : public MeasurementModel {
   void jacobian(const double* state, double* y, double* H) const noexcept override;
   void describe(Json& out) const override;
 
-  /// Effective horizontal/vertical magnetisation ratio r used by the physics (spec §1.2 flag 2).
+  /// Effective horizontal/vertical magnetisation ratio r used by the physics (README "Deviations").
   [[nodiscard]] double effective_weak_ratio() const { return weak_ratio_; }
   /// Harmonic numbers, in configuration order.
   [[nodiscard]] const std::vector<int>& harmonics() const { return harmonics_; }

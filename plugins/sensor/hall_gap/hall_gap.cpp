@@ -66,7 +66,7 @@ void HallGap::describe(Json& out) const {
   out["compensated_range_v"] = std::vector<double>{conversion_.compensated_min_v, conversion_.compensated_max_v};
   out["gap_range_m"] = std::vector<double>{1e-3 * conversion_.nearest_mm(), 1e-3 * conversion_.farthest_mm()};
   out["max_slope_mm_per_v"] = conversion_.max_distance_slope();
-  // The characteristic at the spec's §1.3 table points and the sensitivity an ADC LSB maps to.
+  // The characteristic at C_H = 0, 0.1, ..., 0.8 V and the sensitivity an ADC LSB maps to.
   Json table = Json::array();
   for (int k = 0; k <= 8; ++k) {
     const double c_h = conversion_.compensated_min_v +
@@ -105,5 +105,5 @@ constexpr PortDoc kPorts[] = {
 }  // namespace lode::plugins
 
 LODE_PLUGIN(lode::plugins::HallGap, "sensor.hall_gap", lode::PluginKind::sensor, "0.1.0",
-            "Hall-sensor gap measurement of seed 002: eq. 14-16 with the coil compensation (bracketed eq. 15)",
+            "Hall-sensor gap measurement of Sensors 2016: eq. 14-16 with the coil compensation (bracketed eq. 15)",
             lode::plugins::kParams, lode::plugins::kPorts)

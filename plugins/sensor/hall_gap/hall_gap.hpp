@@ -1,5 +1,5 @@
 // sensor.hall_gap: the ratiometric Hall sensor (Allegro A1321) on the electromagnet face of
-// the seed-002 magnetic suspension (spec seed-002-hall-ukf.md §1), as a measurement model.
+// the magnetic suspension of Sensors 2016, 16, 1504 (eqs. 14-16), as a measurement model.
 //
 // Two outputs, chosen by `output`:
 //
@@ -9,12 +9,12 @@
 //       v_hall  = C_H + 1.299e-6 v^2 + 9.05e-5 v + 2.544            (eq. 15, bracketed reading)
 //       dv_hall/dgap = 1000 / M_H'(C_H)  [V/m],   dv_hall/dv = 2 * 1.299e-6 v + 9.05e-5
 //     Outside the conversion's range (16.29 ... 46.9 mm) C_H is clamped and the reading is
-//     flat (zero slope), as the static characteristic is then no longer valid (spec §1.3).
+//     flat (zero slope), as the static characteristic is then no longer valid (README).
 //
 //   gap (what an estimator fed by estimator.hall_direct sees): the direct distance d_hall of
 //     eq. 14 as a function of the true gap, y = d (eq. 32, 33: "y(k) = d(k)"), saturated to the
 //     conversion's range like d_hall is. The Hall nonlinearity is inverted outside the filter
-//     (spec §1.5).
+//     (eq. 14).
 //
 // @sensor
 // state:                       # what the model depends on (plant outputs, or estimator states/inputs)

@@ -1,6 +1,6 @@
-// The static Hall-to-distance conversion of seed 002 (Sensors 2016, 16, 1504; spec
-// seed-002-hall-ukf.md §1.3), shared by sensor.hall_gap (the forward model the simulator and
-// the estimators use) and estimator.hall_direct (the paper's "direct measurement").
+// The static Hall-to-distance conversion of Sensors 2016, 16, 1504 (eqs. 14-16), shared by
+// sensor.hall_gap (the forward model the simulator and the estimators use) and
+// estimator.hall_direct (the paper's "direct measurement").
 //
 // Header-only and RT-safe (no allocation, no throw). estimator.hall_direct includes it as
 // "../../sensor/hall_gap/hall_polynomial.hpp" so that both plugins evaluate one set of
@@ -8,7 +8,7 @@
 //
 //   d_hall(v, v_hall) = M_H(C_H(v, v_hall))                                      (eq. 14)
 //   C_H = v_hall - (1.299e-6 v^2 + 9.05e-5 v + 2.544)                            (eq. 15, read
-//         as the spec's bracketed form: the Hall output minus its quiescent level and the
+//         with a bracket: the Hall output minus its quiescent level and the
 //         coil-induced part; read literally C_H would be ~5 V and eq. 16 absurd)
 //   M_H(C) = -563.9 C^5 + 1351.6 C^4 - 1284.2 C^3 + 633.1 C^2 - 183.9 C + 46.9   (eq. 16, mm)
 //

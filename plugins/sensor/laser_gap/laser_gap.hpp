@@ -1,9 +1,8 @@
 // sensor.laser_gap: laser distance sensors looking at the platen, for its vertical pose.
 //
 // Silva-Rivas & Kim (2013) measure z, theta (about x) and psi (about y) with three NanoGage
-// laser distance sensors; the paper gives neither their geometry, range nor noise (spec §5),
-// so the spot positions and the sensitivity are parameters ("geometry supplied by
-// configuration", spec §7 item 3).
+// laser distance sensors; the paper gives neither their geometry, range nor noise, so the spot
+// positions and the sensitivity are parameters (geometry supplied by configuration).
 //
 // Sensor i sees the vertical displacement of the platen point at body coordinates
 // (x_i, y_i, 0) under the rotation R = Rx(theta_x) Ry(theta_y) and the lift z:

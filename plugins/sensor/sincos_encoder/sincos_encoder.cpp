@@ -91,7 +91,7 @@ void SincosEncoder::jacobian(const double* state, double* y, double* H) const no
   const double s_shifted = std::sin(theta + config_.quadrature_error_rad);
   y[kSin] = config_.amplitude_v * s + config_.offset_v[0];
   y[kCos] = cos_amplitude_v_ * c_shifted + config_.offset_v[1];
-  // Corrected eq. 11: the trig arguments are 2 pi f_s x (spec §3.1), one column (x).
+  // Corrected eq. 11: the trig arguments are 2 pi f_s x (printed: x), one column (x).
   H[kSin] = wavenumber_rad_per_m_ * config_.amplitude_v * c;
   H[kCos] = -wavenumber_rad_per_m_ * cos_amplitude_v_ * s_shifted;
 }

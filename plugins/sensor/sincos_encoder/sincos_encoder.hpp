@@ -1,17 +1,17 @@
 // sensor.sincos_encoder: a linear analog (sin/cos) encoder read head over a periodic scale.
 //
-// Zimmerman, Oshman & Brandes 2006 (spec seed-001 §1.2): the read head produces two
+// Zimmerman, Oshman & Brandes 2006 (Fig. 1): the read head produces two
 // sinusoids of one scale period, equal amplitude V, 90 degrees apart (eq. 1, 4):
 //
 //   h(x) = [ V sin(2 pi f_s x) ; V cos(2 pi f_s x) ],   f_s = 1 / pitch_m   [1/m]
 //
 // f_s is the *spatial* frequency of the scale, not a sampling rate. Its Jacobian is the
-// corrected eq. 11 (the trig arguments are 2 pi f_s x, not x, spec §3.1 / §9 A1):
+// corrected eq. 11 (the trig arguments are 2 pi f_s x, not x as printed):
 //
 //   dh/dx = 2 pi f_s V [ cos(2 pi f_s x) ; -sin(2 pi f_s x) ]
 //
-// The paper models ideal signals. As an optional extension (spec §1.2 "not modelled", §8
-// item 3; defaults reproduce the paper exactly) the model can add what real read heads show
+// The paper models ideal signals. As an optional extension (not in the paper; defaults
+// reproduce the paper exactly) the model can add what real read heads show
 // and what the cited calibration papers remove: per-channel DC offsets, a cosine/sine
 // amplitude ratio and a quadrature (phase) error phi:
 //

@@ -1,5 +1,5 @@
 // source.ramp: constant-rate reference, e.g. the thesis's +-theta_z ramps that found the
-// rotation range -0.12 ... +0.16 rad (spec seed-000 §7.3, §9 item 9).
+// rotation range -0.12 ... +0.16 rad (Kawato 2005, Figs. 62-63), and rate-limited large moves.
 //
 // @system
 // name: source.ramp

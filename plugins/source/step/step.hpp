@@ -1,5 +1,5 @@
 // source.step: piecewise-constant reference (the thesis's step commands: 10 um, 100 um, 1 mm,
-// 4 mm and 10 mm in Y; 100 urad, 1 mrad, 10 mrad in theta_z; spec seed-000 §7.2-7.3, §9 item 9).
+// 4 mm and 10 mm in Y; 100 urad, 1 mrad, 10 mrad in theta_z; Kawato 2005, Figs. 46-61).
 //
 // @system
 // name: source.step

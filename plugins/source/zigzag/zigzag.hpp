@@ -1,5 +1,5 @@
-// source.zigzag: the zig-zag XY path of the thesis's accuracy experiment (Fig. 49, spec
-// seed-000 §7.2 and §8: the trajectory run against the laser to build the 2-D error table).
+// source.zigzag: the zig-zag XY path of the thesis's accuracy experiment (Kawato 2005, Fig. 49:
+// the trajectory run against the laser to build the 2-D error table).
 //
 // @system
 // name: source.zigzag

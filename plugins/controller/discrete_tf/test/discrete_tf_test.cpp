@@ -1,5 +1,5 @@
 // controller.discrete_tf: eq. 4.48-4.51 by matched pole-zero, the printed difference
-// equation, Tustin with prewarp, the closed loop with the ZOH double integrator (spec §5.2),
+// equation, Tustin with prewarp, the closed loop with the ZOH double integrator (Kawato 2005),
 // output clamp with anti-windup, configuration errors, faults, no allocation in step().
 #include "discrete_tf.hpp"
 
@@ -104,7 +104,7 @@ TEST(ControllerDiscreteTf, MatchedPoleZeroReproducesEq449And451) {
     EXPECT_NEAR(gain, printed_gain[i], 0.015 * printed_gain[i]) << "axis " << i;
     EXPECT_EQ(member(axes[i], "method").as_string(), "matched");
   }
-  // The velocity-constant match of spec §5.2 gives 2.211e5 exactly (printed 2.236e5, +1.1 %).
+  // Matching the velocity constant of eq. 4.48 gives 2.211e5 exactly (eq. 4.49 prints 2.236e5, +1.1 %).
   EXPECT_NEAR(member(member(axes[0], "z_domain"), "gain").as_number(), 2.211e5, 0.0005 * 2.211e5);
   EXPECT_EQ(member(member(axes[0], "gain_matching"), "k").as_number(), 1.0);
   // Ratio of the theta and X gains = 7.6e3/4.09e5 (same factors).
@@ -277,7 +277,7 @@ TEST(ControllerDiscreteTf, ClosedLoopWithZohDoubleIntegrator) {
     const char* name;
     discrete_tf::Design design;
     double mass;
-    double spec_crossover_hz;  // spec §5.2, printed D(z), discrete loop
+    double spec_crossover_hz;  // derived by hand from the printed D(z), discrete loop
     double spec_phase_margin_deg;
   };
   const Case cases[] = {
@@ -288,7 +288,7 @@ TEST(ControllerDiscreteTf, ClosedLoopWithZohDoubleIntegrator) {
   };
   for (const Case& c : cases) {
     const LoopFigures f = loop_figures(c.design, c.mass);
-    std::printf("%-22s crossover %.3f Hz, phase margin %.2f deg, largest closed-loop |z| %.6f (spec %.2f Hz, %.1f deg)\n",
+    std::printf("%-22s crossover %.3f Hz, phase margin %.2f deg, largest closed-loop |z| %.6f (ref %.2f Hz, %.1f deg)\n",
                 c.name, f.crossover_hz, f.phase_margin_deg, f.largest_pole, c.spec_crossover_hz,
                 c.spec_phase_margin_deg);
     EXPECT_LT(f.largest_pole, 1.0) << c.name << ": every closed-loop pole inside the unit circle";

@@ -1,7 +1,8 @@
-// controller.lq_integral: the printed seed-003 gains K_hor / K_ver from the surrogate B (spec
-// §1.5, §2.2), closed-loop stability and bandwidths, zero steady-state error to steps and to a
-// constant disturbance (with observer velocities and with the backward difference), the
-// anti-windup, two modes in one block, configuration errors, faults and no allocation.
+// controller.lq_integral: the printed gains K_hor / K_ver (Silva-Rivas & Kim 2013, eqs. 17, 19)
+// from the surrogate B of plant.maglev6, closed-loop stability and bandwidths, zero steady-state
+// error to steps and to a constant disturbance (with observer velocities and with the backward
+// difference), the anti-windup, two modes in one block, configuration errors, faults and no
+// allocation.
 #include "lq_integral.hpp"
 
 #include <gtest/gtest.h>
@@ -28,10 +29,10 @@ const Elements kPlanar{{"x", "m"}, {"y", "m"}, {"phi", "rad"}};
 const Elements kPlanarVelocity{{"x_dot", "m/s"}, {"y_dot", "m/s"}, {"phi_dot", "rad/s"}};
 const Elements kSixDof{{"x", "m"}, {"y", "m"}, {"phi", "rad"}, {"z", "m"}, {"theta", "rad"}, {"psi", "rad"}};
 
-// Spec §1.5 surrogate acceleration inputs (rows: x'', y'', phi'' / z'', theta'', psi'').
+// Surrogate acceleration inputs of plant.maglev6 (rows: x'', y'', phi'' / z'', theta'', psi'').
 constexpr std::array<double, 9> kHorizontalB = {-0.554, 0.519, 12.903, 13.369, 13.55, -0.088, -209.292, 199.399, -183.1};
 constexpr std::array<double, 9> kVerticalB = {10.571, 10.597, 22.781, -256.201, -256.513, 475.071, 360.858, -343.005, 12.837};
-// Spec §2.2, eq. 17 and eq. 19, columns [pos(3), int(3), vel(3)].
+// Eq. 17 and eq. 19, columns [pos(3), int(3), vel(3)] (eq. 19's "405.5 - 40.9" read as two entries).
 constexpr std::array<std::array<double, 9>, 3> kPrintedKHor = {{
     {-160.2, 253.9, -92, -3523, 6372, -3183, -3.46, 4.74, -1.18},
     {158.3, 264.7, 88.2, 3464, 6629, 3045, 3.44, 4.95, 1.13},
@@ -42,7 +43,7 @@ constexpr std::array<std::array<double, 9>, 3> kPrintedKVer = {{
     {442.5, -40.5, -49.1, 15130, -2633, -3954, 6.7, -0.9, -1.3},
     {480, 69.1, 2.4, 16407, 4837, 89.8, 7.3, 1.63, 0.03},
 }};
-// Spring terms of the vertical mode, K/M: 620/1.52, 65/0.0037, 87/0.0019 [1/s^2] (spec §1.1).
+// Spring terms of the vertical mode, K/M: 620/1.52, 65/0.0037, 87/0.0019 [1/s^2] (the paper's values).
 const std::array<double, 3> kSprings = {620.0 / 1.52, 65.0 / 0.0037, 87.0 / 0.0019};
 
 std::string list(const double* values, std::size_t n) {
@@ -141,11 +142,11 @@ TEST(LqIntegral, ReproducesPrintedKHorFromTheSurrogateB) {
   ASSERT_EQ(K.size(), 3u);
   ASSERT_EQ(K[0].size(), 9u);
   const GainComparison c = compare_gains(K, kPrintedKHor, "K_hor (800 Hz)");
-  EXPECT_LE(c.median, 0.02) << "seed-003 criterion: median element error <= 2 %";
-  EXPECT_LE(c.worst, 0.08) << "spec §1.5 reports a worst element of 7.6 % (the -0.02 entry)";
+  EXPECT_LE(c.median, 0.02) << "criterion: median element error <= 2 %";
+  EXPECT_LE(c.worst, 0.08) << "the surrogate's inverse fit has a worst element of 7.6 % (the -0.02 entry)";
   EXPECT_LT(member(mode, "riccati_relative_residual").as_number(), 1e-13);
 
-  // Closed loop stable; the spec's fit gives poles of about 7.5-10.8 Hz plus one fast pole.
+  // Closed loop stable; the surrogate's inverse fit gives poles of about 7.5-10.8 Hz plus one fast pole.
   EXPECT_LT(member(mode, "largest_pole_abs").as_number(), 1.0);
   std::printf("closed-loop poles (|z|, natural Hz, damping):\n");
   std::vector<double> natural;
@@ -156,7 +157,7 @@ TEST(LqIntegral, ReproducesPrintedKHorFromTheSurrogateB) {
   }
   std::sort(natural.begin(), natural.end());
   EXPECT_GT(natural.front(), 5.0);
-  EXPECT_LT(natural[natural.size() - 2], 15.0) << "all but the fast pole near the spec's 7.5-10.8 Hz";
+  EXPECT_LT(natural[natural.size() - 2], 15.0) << "all but the fast pole near the inverse fit's 7.5-10.8 Hz";
   const auto bandwidth = member(mode, "bandwidth_hz").elements();
   ASSERT_EQ(bandwidth.size(), 3u);
   std::printf("-3 dB bandwidths x, y, phi: %.2f %.2f %.2f Hz (paper: 9-30 Hz planar)\n", bandwidth[0].as_number(),
@@ -174,7 +175,7 @@ TEST(LqIntegral, VerticalDesignWithSpringsNearPrintedKVer) {
   const Json d = h.describe();
   const Json& mode = member(d, "modes").elements().at(0);
   const GainComparison c = compare_gains(matrix_of(member(mode, "K")), kPrintedKVer, "K_ver (1000 Hz, springs)");
-  // Spec §1.5: the vertical surrogate is a poorer fit (median 4 %, worst 24 %); pinned there.
+  // The vertical surrogate is a poorer fit (median 4 %, worst 24 %: plant.maglev6); pinned there.
   EXPECT_LE(c.median, 0.05);
   EXPECT_LE(c.worst, 0.30);
   EXPECT_LT(member(mode, "largest_pole_abs").as_number(), 1.0);
@@ -226,7 +227,7 @@ LoopResult run_loop(BlockHarness& h, bool feed_velocity, const std::array<double
 }
 
 TEST(LqIntegral, ZeroSteadyStateErrorToStepsAndDisturbances) {
-  // Spec §6.1 steps: 20 um in x, 10 um in y, 100 urad in phi; plus a constant current offset.
+  // The paper's steps (Figs. 9, 10, 12): 20 um in x, 10 um in y, 100 urad in phi; plus a constant current offset.
   const std::array<double, 3> step{20e-6, 10e-6, 100e-6};
   for (bool velocity_input : {true, false}) {
     BlockHarness h("controller.lq_integral", "modes:\n" + horizontal_mode(), 800.0);

@@ -1,5 +1,5 @@
 // controller.pid: the gains-to-recursion design against a parallel PID written out, eq. 35's
-// coefficients literally (and their roots, spec §7.3), the clamp and its anti-windup, setpoint
+// coefficients literally (and their roots), the clamp and its anti-windup, setpoint
 // weights, choosing the axis by name, configuration errors and no allocation in step().
 #include "pid.hpp"
 
@@ -61,7 +61,7 @@ TEST(PidDesign, TheDerivativePoleOfEq35IsAFilterNear991RadPerSecond) {
 }
 
 TEST(PidDesign, Eq35RootsAsTheSpecReadsThem) {
-  // Denominator 1 - 1.604 z^-1 + 0.603 z^-2: roots 1.0025 and 0.6015 (spec §7.3);
+  // Denominator 1 - 1.604 z^-1 + 0.603 z^-2: roots 1.0025 and 0.6015 (a rounded 1 - z^-1 factor);
   // numerator -623.9 + 1020 z^-1 - 386.8 z^-2: roots 0.598 and 1.037, coefficient sum 9.3.
   const auto poles = lode::plugins::pid::quadratic_roots(1.0, -1.604, 0.603);
   ASSERT_EQ(poles.size(), 2u);

@@ -1,7 +1,7 @@
 // estimator.arctan_encoder: eq. 2 and eq. 3 (with quadrant logic) give the same angle; the
 // cycle counter unwraps in both directions up to its half-period-per-sample limit; the
-// homing reference; the baseline's noise is the theoretical 5.09 nm / 144 um/s of spec §5.5;
-// faults, configuration errors and no allocation in step().
+// homing reference; the baseline's noise is the theoretical 5.09 nm / 144 um/s (derived from
+// Table 1's 8 mV on 1 V); faults, configuration errors and no allocation in step().
 #include "arctan_encoder.hpp"
 
 #include <gtest/gtest.h>
@@ -28,7 +28,7 @@ constexpr double kT = 1.0 / kRate;
 constexpr double kPi = std::numbers::pi;
 
 TEST(ArctanAngle, Eq3WithQuadrantLogicEqualsAtan2Everywhere) {
-  // Spec §4 / §9 A3: with correct quadrants eq. 3 returns the same angle as eq. 2.
+  // With correct quadrants (not printed) eq. 3 returns the same angle as eq. 2.
   for (int i = -3600; i <= 3600; ++i) {
     const double theta = i * kPi / 3600;  // every 0.05 degrees, octant boundaries included
     for (double radius : {1.0, 0.37, 1.2}) {
@@ -82,7 +82,7 @@ TEST(ArctanDecoder, CountsPeriodsBothWaysAndDifferencesVelocity) {
 }
 
 TEST(ArctanDecoder, AliasesBeyondHalfAPeriodPerSample) {
-  // The counting limit of spec §3.4 (|v| T < pitch/2): 0.55 pitch forward per sample looks
+  // The counting limit (|v| T < pitch/2): 0.55 pitch forward per sample looks
   // like 0.45 pitch backward. This is the baseline's documented range, not a bug.
   Decoder d;
   d.configure(kPitch, kT, 0.0);
@@ -139,7 +139,7 @@ NoiseStats run_with_noise(const std::string& method, double noise_v) {
 
 TEST(ArctanEncoder, NoiseIsTheTheoreticalBaseline) {
   // 8 mV on a 1 V signal is 8 mrad of phase: 8e-3 / (2 pi) * 4 um = 5.093 nm, and the
-  // backward difference makes sqrt(2) * 5.093 nm * 20 kHz = 144.0 um/s (spec §5.5).
+  // backward difference makes sqrt(2) * 5.093 nm * 20 kHz = 144.0 um/s.
   const double position = 8e-3 / (2 * kPi) * kPitch;
   const double velocity = std::sqrt(2.0) * position * kRate;
   for (const char* method : {"atan2", "arcsin_arccos"}) {
@@ -174,7 +174,7 @@ TEST(ArctanEncoder, PortsAndDescribe) {
   EXPECT_EQ(h.output("cycle_count")[0], 250.0);
   const lode::Json d = h.describe();
   ASSERT_NE(d.find("max_unambiguous_speed_m_s"), nullptr);
-  EXPECT_NEAR(d.find("max_unambiguous_speed_m_s")->as_number(), 0.04, 1e-12);  // 40 mm/s (spec §3.4)
+  EXPECT_NEAR(d.find("max_unambiguous_speed_m_s")->as_number(), 0.04, 1e-12);  // 40 mm/s: pitch / (2 T)
 }
 
 TEST(ArctanEncoder, ZeroSignalFaults) {

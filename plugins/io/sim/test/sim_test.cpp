@@ -37,7 +37,7 @@ constexpr double kMassKg = 6.20;
 
 const lode::Elements kCommand = {{"fx", "N"}, {"fy", "N"}, {"tz", "N*m"}};
 
-// Sensors A and B of the thesis (spec §2.3), 2 mm gap; four channels A_a, A_b, B_a, B_b.
+// Sensors A and B of the thesis (positions assumed: Fig. 28 only), 2 mm gap; four channels A_a, A_b, B_a, B_b.
 const std::string kHallSpec =
     "{plugin: sensor.halbach_hall, sensors: [{name: A, x_m: 0.00635, y_m: 0.09525}, "
     "{name: B, x_m: -0.00635, y_m: -0.09525}]}";
@@ -208,7 +208,7 @@ TEST(IoSim, WhiteNoiseStdWithinFivePercent) {
 
 TEST(IoSim, QuantizationStepIsTwiceRangeOverTwoToTheBits) {
   REQUIRE_HALBACH();
-  // 12 bits over +-10 V: LSB = 20 V / 4096 = 4.8828125 mV (spec §6).
+  // 12 bits over +-10 V: LSB = 20 V / 4096 = 4.8828125 mV (an example; the thesis gives no ADC range).
   Board b("noise_std_v: 0.02\nadc_bits: 12\nadc_range_v: 10\n");
   ASSERT_TRUE(b.ok) << b.why;
   const double lsb = 2.0 * 10.0 / 4096.0;

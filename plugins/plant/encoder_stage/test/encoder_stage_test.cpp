@@ -1,4 +1,4 @@
-// plant.encoder_stage: the paper's test inputs (spec seed-001 §5.2) sampled exactly, time
+// plant.encoder_stage: the paper's test inputs (Tables 2-4) sampled exactly, time
 // kept without drift over long fast runs, reset, and the YAML path (hosted by io.sim).
 #include "encoder_stage.hpp"
 

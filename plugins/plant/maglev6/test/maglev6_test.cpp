@@ -1,6 +1,6 @@
-// plant.maglev6: the paper's masses, inertias and stiffnesses (spec §1.1), exact ZOH
-// integration of the pure-mass and spring-mass axes, the surrogate input matrices of spec
-// §1.5, the disturbance wrench, the ProcessModel face, and the YAML path through io.sim.
+// plant.maglev6: the paper's masses, inertias and stiffnesses (Silva-Rivas & Kim 2013), exact
+// ZOH integration of the pure-mass and spring-mass axes, the surrogate input matrices (README),
+// the disturbance wrench, the ProcessModel face, and the YAML path through io.sim.
 #include "maglev6.hpp"
 
 #include <gtest/gtest.h>
@@ -17,7 +17,7 @@
 namespace lode::plugins {
 namespace {
 
-constexpr double kDt = 1.0 / 800.0;  // spec §1.6 default rate
+constexpr double kDt = 1.0 / 800.0;  // the default rate (the paper gives none)
 
 std::array<double, Maglev6::kStateSize> state_of(const Maglev6& plant) {
   std::array<double, Maglev6::kStateSize> x{};
@@ -52,7 +52,7 @@ TEST(Maglev6, DeclaresPortsAndThePapersParameters) {
 }
 
 TEST(Maglev6, VerticalNaturalFrequenciesOfSpecSection11) {
-  // spec §1.1 [derived]: z 20.2 rad/s (3.21 Hz), theta 132.5 rad/s (21.1 Hz), psi 214 rad/s (34.1 Hz).
+  // Derived from the paper's values: z 20.2 rad/s (3.21 Hz), theta 132.5 rad/s (21.1 Hz), psi 214 rad/s (34.1 Hz).
   Maglev6 plant;
   const auto& w = plant.natural_frequency_rad_s();
   EXPECT_EQ(w[Maglev6::kX], 0.0);
@@ -66,7 +66,7 @@ TEST(Maglev6, VerticalNaturalFrequenciesOfSpecSection11) {
 }
 
 TEST(Maglev6, PlanarAxesIntegrateTheSurrogateBExactly) {
-  // Constant currents: planar accelerations B_planar iq (spec §1.5), closed-form parabola.
+  // Constant currents: planar accelerations B_planar iq (the surrogate), closed-form parabola.
   Maglev6Config config;
   config.initial = {1e-3, -2e-3, 0.01, 0, 0, 0};
   config.initial_velocity = {0.02, -0.01, 0.1, 0, 0, 0};

@@ -129,7 +129,7 @@ TEST(PlanarStage, WorkEqualsKineticEnergyChange) {
   EXPECT_GT(std::abs(energy1 - energy0), 1e-3);  // the forces did real work
 }
 
-// The force asymmetry of spec §5.1: fx applied with a lever arm also turns the platen,
+// The thesis's force asymmetry: fx applied with a lever arm also turns the platen,
 // tz_eff = tz + lever * fx; x is unaffected by the lever.
 TEST(PlanarStage, YawCouplingTurnsXForceIntoMoment) {
   PlanarStageConfig config;

@@ -58,7 +58,7 @@ TEST(RigidBody6, DeclaresPortsWithSiUnitsAndTable1Defaults) {
   // The process model has the same layout.
   EXPECT_EQ(body.process_state().size(), 12u);
   EXPECT_EQ(body.process_inputs().size(), 6u);
-  // Table 1 (spec §1.1).
+  // Table 1 of Gutierrez & Li 2024.
   EXPECT_EQ(body.config().physics.mass_kg, 0.931);
   EXPECT_EQ(body.config().physics.inertia_kg_m2[0], 1.799e-3);
   EXPECT_EQ(body.config().physics.inertia_kg_m2[1], 1.834e-3);
@@ -178,7 +178,7 @@ TEST(RigidBody6, TorqueFreeTumblingConservesEnergyAndAngularMomentum) {
   EXPECT_GT(std::abs(x1[rb::kQ] - x0[rb::kQ]), 0.05);
 }
 
-// Gravity along -z of the fixed frame whatever the attitude (spec A7).
+// Gravity along -z of the fixed frame whatever the attitude (z up, assumed).
 TEST(RigidBody6, GravityPullsAlongFixedMinusZAtAnyAttitude) {
   RigidBody6Config c;
   c.physics.gravity_m_s2 = 9.81;

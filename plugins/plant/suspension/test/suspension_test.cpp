@@ -1,6 +1,6 @@
-// plant.suspension: the force-fit constants (Table 3 -> Table 4, spec §5.3), the stage-1 NNLS
-// fit, the spec §2.3 analysis of the printed model, the coil and free-fall closed forms, the
-// end stops, the Euler process model (eq. 33) and its Jacobian (spec §3.8), and the YAML path.
+// plant.suspension: the force-fit constants (Table 3 -> Table 4), the stage-1 NNLS fit, why the
+// printed model (eq. 32) cannot be simulated, the coil and free-fall closed forms, the end stops,
+// the Euler process model (eq. 33) and its Jacobian, and the YAML path.
 #include "suspension.hpp"
 
 #include <gtest/gtest.h>
@@ -31,7 +31,7 @@ const std::vector<double> kTableB{7.587e-8,  88.6e-8,  174.4e-8, 263.4e-8,
                                   357.1e-8, 450.6e-8, 543.1e-8, 637.2e-8};
 
 TEST(SuspensionForceFit, StageTwoReproducesTable4) {
-  // Spec §5.3: a-bar within 0.1 %, m within 0.5 %, J_3 within 10 % of Table 4.
+  // Criteria: a-bar within 0.1 %, m within 0.5 %, J_3 within 10 % of Table 4.
   const auto fit = lode::plugins::fit_force_coefficients(kCurrents, kTableA, kTableB);
   ASSERT_TRUE(fit) << fit.error();
   std::printf("stage-2 fit: a = %.5e (Table 4 5.996e-9), m = %.5e (4.509e-6), J_3 = %.4e (2.0486e-14)\n",
@@ -97,7 +97,7 @@ SuspensionConfig pipeline_config() {  // config/suspension_ukf.yaml: the self-co
 }
 
 TEST(SuspensionPhysics, PrintedModelCannotHoldTheMagnetInsideTheClamp) {
-  // Spec §2.3: with the mass, the zero-current balance is ~19.4 mm, and holding 22-30 mm
+  // With the mass, the zero-current balance is ~19.4 mm, and holding 22-30 mm
   // needs 1.8-7 A, far beyond the 0.19-1.12 A that the PID's 0.5-3 V clamp allows.
   Suspension s;
   s.apply(paper_config());
@@ -105,7 +105,7 @@ TEST(SuspensionPhysics, PrintedModelCannotHoldTheMagnetInsideTheClamp) {
   EXPECT_NEAR(s.hold_current_a(0.022), 1.83, 0.02);
   EXPECT_NEAR(s.hold_current_a(0.030), 7.04, 0.05);
   EXPECT_GT(s.hold_voltage_v(0.022), 3.0);
-  // At 20 mm the magnet alone pulls 0.0375 N against a weight of 0.0427 N (spec §2.3).
+  // At 20 mm the magnet alone pulls 0.0375 N against a weight of 0.0427 N.
   EXPECT_NEAR(s.force_n(0.020, 0.0), 0.0375, 0.0001);
 }
 
@@ -245,7 +245,7 @@ TEST(SuspensionProcess, AnalyticJacobianMatchesCentralDifferences) {
     }
   }
   EXPECT_LT(worst, 1e-6);
-  // The coil pole of eq. 33 (spec §2.3): 1 - 165.6 t_s = 0.9172.
+  // The coil pole of eq. 33: 1 - 165.6 t_s = 0.9172.
   std::array<double, 9> F{};
   const std::array<double, 3> x{0.025, 0.0, 0.5};
   const double u = 0.0;

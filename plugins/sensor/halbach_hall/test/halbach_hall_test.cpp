@@ -1,4 +1,4 @@
-// Tests of sensor.halbach_hall: the Fourier physics against the spec's derived table, the
+// Tests of sensor.halbach_hall: the Fourier physics against an independent amplitude table, the
 // channel model and its analytic Jacobian, the least-squares property of the [1, 5] model and
 // the located configuration errors.
 #include "halbach_hall.hpp"
@@ -20,7 +20,8 @@ namespace {
 constexpr double kPitch = 0.0508;
 constexpr double kPi = std::numbers::pi;
 
-/// The thesis geometry assumed by the spec (§2.3): A = (+6.35, +95.25) mm, B = (-6.35, -95.25) mm.
+/// The thesis geometry, assumed (the thesis shows it only in Fig. 28): A = (+6.35, +95.25) mm,
+/// B = (-6.35, -95.25) mm.
 HalbachHallConfig two_sensor_config(std::vector<int> harmonics = {1, 5}) {
   HalbachHallConfig c;
   c.harmonics = std::move(harmonics);
@@ -41,10 +42,10 @@ HalbachHallConfig two_sensor_config(std::vector<int> harmonics = {1, 5}) {
 double default_ratio() { return std::numbers::sqrt2 * 1.10 / 1.43; }
 
 // ---------------------------------------------------------------------------------------
-// Physics (spec §1.2, §1.3)
+// Physics (eq. 3.5-3.14; README "Deviations" 1-2)
 
 TEST(HalbachPhysics, FundamentalAmplitudeAt2mmMatchesSpecTable) {
-  // Spec §1.3, Z0 = 2 mm: 0.416 T with r = 1.088 (sqrt(2) B_r,weak / B_r,strong), 0.352 T with the
+  // Independent table, Z0 = 2 mm: 0.416 T with r = 1.088 (sqrt(2) B_r,weak / B_r,strong), 0.352 T with the
   // printed ratio 0.769. The table has three digits: tolerance half a unit of the last digit.
   const auto actual = halbach_field_harmonic(1, kPitch, 0.002, 0.0127, 1.43, default_ratio());
   const auto printed = halbach_field_harmonic(1, kPitch, 0.002, 0.0127, 1.43, 1.10 / 1.43);
@@ -57,7 +58,7 @@ TEST(HalbachPhysics, AmplitudeTableOfSpecAllGaps) {
   struct Row {
     double gap_m, n1_r0769, n1_r1088, n3_r0769, n3_r1088, n5_r0769, n5_r1088, n5_over_n1;
   };
-  // Spec §1.3 (Derived), strong side up, M0 = B_r,strong / (2 mu0), Delta = 12.7 mm.
+  // Independent table, strong side up, M0 = B_r,strong / (2 mu0), Delta = 12.7 mm.
   const Row rows[] = {{0.001, 0.399, 0.470, 0.017, 0.006, 0.061, 0.072, 0.154},
                       {0.002, 0.352, 0.416, 0.012, 0.004, 0.033, 0.039, 0.094},
                       {0.003, 0.311, 0.367, 0.008, 0.003, 0.018, 0.021, 0.057},
@@ -72,7 +73,7 @@ TEST(HalbachPhysics, AmplitudeTableOfSpecAllGaps) {
     EXPECT_NEAR(h(1, 1.10 / 1.43), row.n1_r0769, tol);
     EXPECT_NEAR(h(1, default_ratio()), row.n1_r1088, tol);
     EXPECT_NEAR(h(3, 1.10 / 1.43), row.n3_r0769, tol);
-    // One cell of the spec is rounded twice: 0.00146 T -> 0.0015 -> "0.002" at 5 mm.
+    // One cell of the table is rounded twice: 0.00146 T -> 0.0015 -> "0.002" at 5 mm.
     EXPECT_NEAR(h(3, default_ratio()), row.n3_r1088, row.gap_m == 0.005 ? 0.0006 : tol);
     EXPECT_NEAR(h(5, 1.10 / 1.43), row.n5_r0769, tol);
     EXPECT_NEAR(h(5, default_ratio()), row.n5_r1088, tol);
@@ -83,7 +84,7 @@ TEST(HalbachPhysics, AmplitudeTableOfSpecAllGaps) {
 }
 
 TEST(HalbachPhysics, StrongSideShapeAndSigns) {
-  // Spec §1.3: B_X(X) ~ -A1 sin(kX) + A5 sin(5kX) - A9 sin(9kX); no cosine terms; the 5th and
+  // Strong side: B_X(X) ~ -A1 sin(kX) + A5 sin(5kX) - A9 sin(9kX); no cosine terms; the 5th and
   // the fundamental share zero crossings; beta/alpha ~ -0.094 at 2 mm.
   const double r = default_ratio();
   const auto h1 = halbach_field_harmonic(1, kPitch, 0.002, 0.0127, 1.43, r);
@@ -94,7 +95,7 @@ TEST(HalbachPhysics, StrongSideShapeAndSigns) {
   EXPECT_LT(h9.sin_t, 0.0);
   for (const auto& h : {h1, h5, h9}) EXPECT_NEAR(h.cos_t, 0.0, 1e-15);
   EXPECT_NEAR(h5.sin_t / h1.sin_t, -0.094, 0.0005);
-  // Ideal array (r = 1): the 3rd and 7th cancel exactly (spec §1.2 flag 2).
+  // Ideal array (r = 1): the 3rd and 7th cancel exactly (README "Deviations" 2).
   EXPECT_NEAR(halbach_field_harmonic(3, kPitch, 0.002, 0.0127, 1.43, 1.0).amplitude_t(), 0.0, 1e-15);
   EXPECT_NEAR(halbach_field_harmonic(7, kPitch, 0.002, 0.0127, 1.43, 1.0).amplitude_t(), 0.0, 1e-15);
 }
@@ -111,7 +112,7 @@ TEST(HalbachPhysics, ModelCoefficientsAreSensitivityTimesField) {
       EXPECT_DOUBLE_EQ(model.cos_coefficient_v(ch, h), 8.43 * field.cos_t);
     }
   }
-  // alpha at 2 mm ~ 8.43 V/T x 0.416 T = 3.5 V (spec §1.3 "3.0-3.5 V").
+  // alpha at 2 mm ~ 8.43 V/T x 0.416 T = 3.5 V (an estimate of 3.0-3.5 V; the thesis prints no fit).
   EXPECT_NEAR(std::abs(model.sin_coefficient_v(0, 0)), 3.507, 0.005);
 }
 
@@ -124,7 +125,7 @@ TEST(HalbachPhysics, WeakRatioOverride) {
 }
 
 // ---------------------------------------------------------------------------------------
-// Channel model (spec §2.5)
+// Channel model (eq. 4.19-4.26)
 
 TEST(HalbachModel, ChannelNamesAndOrder) {
   HalbachHallConfig c = two_sensor_config();
@@ -288,7 +289,7 @@ TEST(HalbachJacobian, MatchesFiniteDifferencesCurveFitWithPhasesAndThreeSensors)
 }
 
 TEST(HalbachJacobian, WouldCatchTheThesisListingBug) {
-  // The printed listing has "- b10*Ct" instead of "- b10*St" in db/dtheta (spec §3.3 bug 2).
+  // The printed listing has "- b10*Ct" instead of "- b10*St" in db/dtheta (README "Deviations" 4).
   // Show that the finite-difference check has the power to see an error of that size.
   HalbachHall model;
   ASSERT_TRUE(model.apply(two_sensor_config()).is_ok());
@@ -305,7 +306,7 @@ TEST(HalbachJacobian, WouldCatchTheThesisListingBug) {
 }
 
 // ---------------------------------------------------------------------------------------
-// The [1, 5] physics model is the least-squares fit of the richer field (thesis §2.4)
+// The [1, 5] physics model is the least-squares fit of the richer field (thesis eq. 4.11)
 
 TEST(HalbachLeastSquares, BatchFitOfRicherFieldEqualsHarmonics15Model) {
   // The simulator's "true" field has harmonics [1,3,5,7,9]; fit c + alpha sin(wu) + beta sin(5wu)

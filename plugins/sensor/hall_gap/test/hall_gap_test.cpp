@@ -1,6 +1,6 @@
-// sensor.hall_gap: the spot values and monotonicity of eq. 16 (spec §1.3 table, §5.3 pass
-// criterion), the bracketed reading of eq. 15, forward/inverse consistency with the direct
-// conversion, the Jacobian, clamping, the `gap` output, and the YAML path through io.sim.
+// sensor.hall_gap: the spot values and monotonicity of eq. 16 (against a table evaluated by
+// hand, to +-0.01 mm), the bracketed reading of eq. 15, forward/inverse consistency with the
+// direct conversion, the Jacobian, clamping, the `gap` output, and the YAML path through io.sim.
 #include "hall_gap.hpp"
 
 #include <gtest/gtest.h>
@@ -21,7 +21,7 @@ using lode::plugins::HallGap;
 namespace hall = lode::plugins::hall;
 
 
-// Spec §1.3: C_H [V], M_H [mm], slope dM_H/dC_H [mm/V], printed to 0.01 mm / 0.1 mm/V.
+// Eq. 16 by hand: C_H [V], M_H [mm], slope dM_H/dC_H [mm/V], to 0.01 mm / 0.1 mm/V.
 struct SpotValue {
   double c_h, distance_mm, slope_mm_per_v;
 };
@@ -42,7 +42,7 @@ TEST(HallConversion, SpotValuesOfTheSpecTable) {
     EXPECT_NEAR(c.distance_mm.value(s.c_h), s.distance_mm, 0.01) << "C_H = " << s.c_h;
     EXPECT_NEAR(c.distance_mm.slope(s.c_h), s.slope_mm_per_v, 0.05) << "C_H = " << s.c_h;
   }
-  // Past 0.8 V the polynomial falls away (spec: 11.83 mm at 0.9 V): not a valid reading.
+  // Past 0.8 V the polynomial falls away (11.83 mm at 0.9 V): not a valid reading.
   EXPECT_NEAR(c.distance_mm.value(0.9), 11.83, 0.01);
 }
 
@@ -66,7 +66,7 @@ TEST(HallConversion, MonotonicDecreasingOnTheValidRange) {
 
 TEST(HallConversion, BracketedReadingOfEq15) {
   const hall::Conversion c = hall::Conversion::paper();
-  // The coil term is tiny as printed: at most 0.28 mV at v = 3 V (spec §1.3).
+  // The coil term is tiny as printed: at most 0.28 mV at v = 3 V.
   EXPECT_NEAR(c.coil_v.value(3.0) - 2.544, 1.299e-6 * 9 + 9.05e-5 * 3, 1e-15);
   EXPECT_LT(c.coil_v.value(3.0) - 2.544, 0.3e-3);
   // A Hall output 0.2 V above its quiescent + coil level reads 27.15 mm.

@@ -110,7 +110,7 @@ TEST(SincosEncoder, JacobianIsTheCorrectedEquation11) {
   const double slope = model.wavenumber_rad_per_m();
   EXPECT_NEAR(H[0], 0.0, 1e-9 * slope);
   EXPECT_NEAR(H[1], -slope, 1e-9 * slope);
-  // Eq. 11 as printed has cos(x) and -sin(x) of the bare position (spec §9 A1): at x = 1 um
+  // Eq. 11 as printed has cos(x) and -sin(x) of the bare position: at x = 1 um
   // that is ~[2 pi f_s V, 0], far from the true slope [0, -2 pi f_s V]; the model must not
   // be it.
   const double printed_sin_row = slope * std::cos(x);

@@ -63,7 +63,7 @@ TEST(SourceStep, StepAtTimeZeroAppliesOnTheFirstCycle) {
 }
 
 // At 800 Hz the cycles are 1.25 ms apart: a step at 0.1 s lands exactly on cycle 80 (the
-// thesis's "80th sample", spec §7.1), not one early or late through rounding.
+// thesis's "80th sample", Fig. 37), not one early or late through rounding.
 TEST(SourceStep, ThesisStepLandsOnCycle80At800Hz) {
   BlockHarness h("source.step", "names: [x]\nunits: [m]\nsteps: [{time_s: 0.1, value: [1e-4]}]\n",
                  800.0);
