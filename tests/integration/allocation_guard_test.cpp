@@ -63,6 +63,13 @@ class EveryAllocatorPath : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(EveryAllocatorPath, IsCaughtInAPluginStepRunByTheScheduler) {
   LODE_REQUIRE_ALLOCATION_COUNTING();
+#if defined(__SANITIZE_THREAD__)
+  // GCC 12's ThreadSanitizer owns the allocator and serves these five without calling its
+  // allocation hook, the only place a TSan build can count from. The plain and the ASan
+  // builds check them; a TSan build checks the race-freedom of the same code.
+  for (const char* unhooked : {"posix_memalign", "aligned_alloc", "memalign", "valloc", "pvalloc"})
+    if (GetParam() == unhooked) GTEST_SKIP() << GetParam() << " bypasses ThreadSanitizer's allocation hook";
+#endif
   find_test_plugins();
   // 1000 cycles; the plugin allocates from cycle 500: at least 500 allocations, one per step.
   const auto run = lode::testing::measure_cycle_allocations(leaking_pipeline(GetParam(), 500), "guard.yaml",

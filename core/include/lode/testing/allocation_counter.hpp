@@ -9,7 +9,9 @@
 // memalign, aligned_alloc and posix_memalign, and so everything built on them: operator new
 // in all its forms (plain, array, aligned, nothrow), Eigen's aligned buffers, strdup and the
 // rest of libc. Under AddressSanitizer or ThreadSanitizer, which own the allocator, the count
-// comes from the sanitizer's allocation hook instead: it sees the same calls.
+// comes from the sanitizer's allocation hook instead: it sees the same calls, except that GCC
+// 12's ThreadSanitizer serves posix_memalign, aligned_alloc, memalign, valloc and pvalloc
+// without calling the hook (operator new, aligned or not, is seen).
 //
 // thread_allocation_count() counts the calling thread only, so a test can measure what one
 // thread (the scheduler's cycle thread) allocates while other threads go on.
