@@ -19,6 +19,7 @@ struct Args {
   std::vector<std::string> positional;
   std::map<std::string, std::string> options;
   std::vector<std::string> flags;
+  std::map<std::string, std::vector<std::string>> lists;  ///< repeatable options, every value in order
   [[nodiscard]] bool has_flag(const std::string& f) const {
     return std::find(flags.begin(), flags.end(), f) != flags.end();
   }
@@ -28,16 +29,6 @@ struct Args {
     return it == options.end() ? fallback : it->second;
   }
 };
-
-/// Options that take a value (`--duration 3` as well as `--duration=3`).
-inline const std::vector<std::string>& options_with_value() {
-  static const std::vector<std::string> v = {
-      "--duration", "--clock",   "--summary-json", "--cycles",  "--domain",  "--transport",
-      "--peers",    "--interfaces", "--count",     "--wait",    "--topics",  "--name",
-      "--pipeline", "--timeout", "--record",       "--wait-subscribers", "--params", "--promote",
-      "--format", "--remote-start", "--speed", "--shadow-cycles"};
-  return v;
-}
 
 /// Parse a number option; prints the problem and returns nullopt when malformed.
 std::optional<double> number_option(const Args& args, const std::string& name, double fallback, double min,

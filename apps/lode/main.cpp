@@ -20,6 +20,7 @@
 #include "analysis.hpp"
 #include "run_analysis.hpp"
 #include "cli.hpp"
+#include "command_line.hpp"
 #include "run_services.hpp"
 #include "lode/crash_guard.hpp"
 #include "lode/event_log.hpp"
@@ -39,79 +40,6 @@ using lode::cli::kExitFault;
 using lode::cli::kExitOk;
 
 
-const char* kUsage = R"(usage: lode <command> [options]
-
-  run CONFIG [--duration S] [--clock sim|real] [--summary-json FILE] [--quiet]
-                       (default clock: the pipeline's realtime.clock, else sim)
-             [--record FILE.h5] [--domain N] [--no-telemetry] [--wait-subscribers N [--wait S]]
-             [--speed X]   (simulated clock: at most X times real time)
-             [--no-local-control]
-                       run a pipeline; live status line, summary at the end; publishes the
-                       YAML's `telemetry:` topics over Fast DDS; --record writes every output
-                       at full rate (HDF5); serves set/swap/record commands on the local
-                       socket $XDG_RUNTIME_DIR/lode/PIPELINE.sock (one run per pipeline)
-  check CONFIG         validate a pipeline; every problem with file:line:column
-  describe CONFIG      the resolved pipeline as JSON, with every derived quantity
-  plugins [--json]     installed plugins with their parameters and ports
-  replay RECORDING [--config OTHER.yaml ...] [--output OUT.h5] [--report R.md|R.json]
-         [--reference block.port] [--estimate block.port ...] [--quiet]
-                       run a recording's raw inputs (lode run --record) through the recorded
-                       configuration (checked bit for bit) and other estimator sets, at full
-                       speed; writes OUT.h5 per configuration and a comparison report
-  bench CONFIG [--cycles N]
-                       per-block and whole-cycle step cost (simulated clock)
-  rtcheck              how fit this host is for real-time runs, with advice
-
-remote (any machine on the DDS domain; --domain N --transport loopback|shm|udp_loopback|network
-        --peers A,B --interfaces A,B --name NAME, or LODE_DDS_DOMAIN/TRANSPORT/PEERS/INTERFACES):
-  topics [--json] [--wait S]
-                       the live lodestone topics with rates, element names and units
-  echo TOPIC|BLOCK.PORT|events|timing [--count N] [--duration S] [--table]
-                       live samples: one line per sample (cycle, time, values) or a table
-  record FILE.h5 [--topics A,B] [--duration S]
-                       record live topics and events to HDF5 (h5py / MATLAB h5read); stops
-                       on Ctrl-C, --duration, or when the recorded pipelines stop
-  record --remote-start FILE | --remote-stop
-                       ask the running pipeline to record every output on its own host
-  set [PIPELINE/]BLOCK.PARAM [VALUE] | set --list [BLOCK]
-                       change (or read) a runtime parameter; the reply says what happened
-  swap [PIPELINE/]BLOCK PLUGIN [--params '{k: v}'] [--shadow-cycles N] [--cold] | swap --promote SHADOW
-                       ask the running pipeline to hot-swap an estimator (state handed
-                       over, one pointer exchange at a cycle boundary) or promote a shadow
-  set/swap/record go to the local socket of a pipeline running on this host, else over DDS
-  (--local or --dds forces one; --pipeline NAME picks one of several local runs)
-
-exit codes: 0 success, 1 runtime fault, 2 invalid configuration
-plugin search path: $LODE_PLUGIN_PATH, <exe>/../lib/lodestone/plugins, install and build folders
-)";
-
-std::optional<Args> parse_args(int argc, char** argv) {
-  if (argc < 2) return std::nullopt;
-  Args a;
-  a.command = argv[1];
-  const auto& with_value = lode::cli::options_with_value();
-  for (int i = 2; i < argc; ++i) {
-    std::string s = argv[i];
-    if (s.rfind("--", 0) == 0) {
-      const auto eq = s.find('=');
-      if (eq != std::string::npos) {
-        a.options[s.substr(0, eq)] = s.substr(eq + 1);
-      } else if (std::find(with_value.begin(), with_value.end(), s) != with_value.end()) {
-        if (i + 1 >= argc) {
-          std::fprintf(stderr, "lode: %s needs a value\n", s.c_str());
-          return std::nullopt;
-        }
-        a.options[s] = argv[++i];
-      } else {
-        a.flags.push_back(s);
-      }
-    } else {
-      a.positional.push_back(s);
-    }
-  }
-  return a;
-}
-
 /// The pipeline named by the command's one positional argument, with the registry whose
 /// libraries its blocks live in (declared first: destroyed last).
 struct LoadedConfig {
@@ -120,12 +48,10 @@ struct LoadedConfig {
   std::string path;
 };
 
-/// Prints the usage or every diagnostic and returns nullopt when there is nothing to run.
+/// Prints every diagnostic and returns nullopt when there is nothing to run. (The command
+/// line has checked that there is exactly one CONFIG.)
 std::optional<LoadedConfig> load_config_argument(const Args& args) {
-  if (args.positional.size() != 1) {
-    std::fputs(kUsage, stderr);
-    return std::nullopt;
-  }
+  if (args.positional.size() != 1) return std::nullopt;
   LoadedConfig loaded;
   loaded.path = args.positional[0];
   loaded.registry = std::make_unique<lode::PluginRegistry>();
@@ -144,6 +70,14 @@ std::optional<LoadedConfig> load_config_argument(const Args& args) {
 int cmd_plugins(const Args& args) {
   lode::PluginRegistry reg;
   auto listing = reg.discover_all();
+  if (!args.positional.empty()) {  // `lode plugins NAME`: that plugin only
+    const std::string& wanted = args.positional.front();
+    std::erase_if(listing.plugins, [&](const auto& p) { return wanted != p.descriptor->name; });
+    if (listing.plugins.empty()) {
+      std::fprintf(stderr, "lode: no plugin named '%s' (`lode plugins` lists them)\n", wanted.c_str());
+      return kExitConfig;
+    }
+  }
   lode::Json out = lode::Json::array();
   for (const auto& p : listing.plugins) {
     const auto* d = p.descriptor;
@@ -530,36 +464,17 @@ int cmd_bench(const Args& args) {
 
 int main(int argc, char** argv) {
   spdlog::set_pattern("[%H:%M:%S.%e] [%^%l%$] %v");
-  // `replay` takes repeated options (--config, --estimate): it parses its own arguments.
-  if (argc >= 2 && std::strcmp(argv[1], "replay") == 0) {
-    try {
-      return lode::cli::cmd_replay(argc, argv);
-    } catch (const std::exception& ex) {
-      std::fprintf(stderr, "lode: internal error: %s\n", ex.what());
-      return kExitFault;
-    }
-  }
-  const auto args = parse_args(argc, argv);
-  if (!args || args->command == "-h" || args->command == "--help" || args->command == "help") {
-    std::fputs(kUsage, args ? stdout : stderr);
-    return args ? kExitOk : kExitConfig;
-  }
+  const std::vector<lode::cli::CommandEntry> commands = {
+      {"run", cmd_run},          {"check", cmd_check},
+      {"describe", cmd_describe}, {"plugins", cmd_plugins},
+      {"replay", lode::cli::cmd_replay}, {"bench", cmd_bench},
+      {"rtcheck", cmd_rtcheck},  {"topics", lode::cli::cmd_topics},
+      {"echo", lode::cli::cmd_echo}, {"record", lode::cli::cmd_record},
+      {"set", lode::cli::cmd_set},  {"swap", lode::cli::cmd_swap}};
   try {
-    if (args->command == "run") return cmd_run(*args);
-    if (args->command == "check") return cmd_check(*args);
-    if (args->command == "describe") return cmd_describe(*args);
-    if (args->command == "plugins") return cmd_plugins(*args);
-    if (args->command == "bench") return cmd_bench(*args);
-    if (args->command == "rtcheck") return cmd_rtcheck(*args);
-    if (args->command == "topics") return lode::cli::cmd_topics(*args);
-    if (args->command == "echo") return lode::cli::cmd_echo(*args);
-    if (args->command == "record") return lode::cli::cmd_record(*args);
-    if (args->command == "set") return lode::cli::cmd_set(*args);
-    if (args->command == "swap") return lode::cli::cmd_swap(*args);
+    return lode::cli::run_command_line(argc, argv, commands);
   } catch (const std::exception& ex) {
     std::fprintf(stderr, "lode: internal error: %s\n", ex.what());
     return kExitFault;
   }
-  std::fprintf(stderr, "lode: unknown command '%s'\n\n%s", args->command.c_str(), kUsage);
-  return kExitConfig;
 }

@@ -32,15 +32,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const char* kReplayUsage = R"(usage: lode replay RECORDING [--config OTHER.yaml ...] [--output OUT.h5]
-                   [--report REPORT.md|REPORT.json] [--reference block.port]
-                   [--estimate block.port ...] [--quiet]
-  Runs the raw inputs recorded by `lode run --record` through the recorded configuration
-  (checked bit for bit against the recording) and through every --config, on the simulated
-  clock, and compares the estimators (monitor.estimate, shadows, --estimate) against the
-  reference (--reference, else monitor.truth): bias, RMS, max, noise std, NIS, step time.
-)";
-
+/// What `lode replay` was asked (the command line declares and checks the options).
 struct ReplayArgs {
   std::string recording;
   std::vector<std::string> configs;
@@ -49,55 +41,15 @@ struct ReplayArgs {
   bool quiet = false;
 };
 
-std::optional<ReplayArgs> parse(int argc, char** argv) {
+ReplayArgs replay_args(const Args& args) {
   ReplayArgs a;
-  for (int i = 2; i < argc; ++i) {
-    std::string s = argv[i];
-    std::string value;
-    const auto eq = s.find('=');
-    const bool inline_value = s.rfind("--", 0) == 0 && eq != std::string::npos;
-    if (inline_value) {
-      value = s.substr(eq + 1);
-      s = s.substr(0, eq);
-    }
-    auto take = [&](std::string& into) -> bool {
-      if (inline_value) {
-        into = value;
-        return true;
-      }
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "lode: %s needs a value\n", s.c_str());
-        return false;
-      }
-      into = argv[++i];
-      return true;
-    };
-    std::string v;
-    if (s == "--config") {
-      if (!take(v)) return std::nullopt;
-      a.configs.push_back(v);
-    } else if (s == "--estimate") {
-      if (!take(v)) return std::nullopt;
-      a.estimates.push_back(v);
-    } else if (s == "--output") {
-      if (!take(a.output)) return std::nullopt;
-    } else if (s == "--report") {
-      if (!take(a.report)) return std::nullopt;
-    } else if (s == "--reference") {
-      if (!take(a.reference)) return std::nullopt;
-    } else if (s == "--quiet") {
-      a.quiet = true;
-    } else if (s.rfind("--", 0) == 0) {
-      std::fprintf(stderr, "lode: replay: unknown option '%s'\n", s.c_str());
-      return std::nullopt;
-    } else if (a.recording.empty()) {
-      a.recording = s;
-    } else {
-      std::fprintf(stderr, "lode: replay: one RECORDING only (got '%s' and '%s')\n", a.recording.c_str(), s.c_str());
-      return std::nullopt;
-    }
-  }
-  if (a.recording.empty()) return std::nullopt;
+  a.recording = args.positional.empty() ? "" : args.positional.front();
+  if (auto it = args.lists.find("--config"); it != args.lists.end()) a.configs = it->second;
+  if (auto it = args.lists.find("--estimate"); it != args.lists.end()) a.estimates = it->second;
+  a.output = args.option("--output");
+  a.report = args.option("--report");
+  a.reference = args.option("--reference");
+  a.quiet = args.has_flag("--quiet");
   return a;
 }
 
@@ -445,13 +397,8 @@ std::string rewrite_for_replay(const std::string& yaml, const std::string& recor
   return out;
 }
 
-int cmd_replay(int argc, char** argv) {
-  const auto args = parse(argc, argv);
-  if (!args) {
-    std::fputs(kReplayUsage, stderr);
-    return kExitConfig;
-  }
-  const auto& a = *args;
+int cmd_replay(const Args& args) {
+  const ReplayArgs a = replay_args(args);
   std::error_code ec;
   const std::string recording = fs::absolute(a.recording, ec).lexically_normal().string();
   auto rec = record::read_recording(recording);

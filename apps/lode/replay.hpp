@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "cli.hpp"
 #include "lode/plugin_loader.hpp"
 
 namespace lode::cli {
@@ -33,6 +34,6 @@ double chi_square_quantile(double p, double k);
 
 /// `lode replay ...` (argv[1] == "replay"). Exit codes: 0 ok, 1 replay fault or bit
 /// mismatch, 2 usage or configuration error.
-int cmd_replay(int argc, char** argv);
+int cmd_replay(const Args& args);
 
 }  // namespace lode::cli

@@ -21,5 +21,5 @@ check_rc() {
   if [ "$2" = "$3" ]; then ok "$1"; else bad "$1: exit code $3, expected $2"; [ -n "${4:-}" ] && sed 's/^/    /' "$4" | tail -20; fi
 }
 # contains LABEL FILE REGEX
-contains() { if grep -qE "$3" "$2"; then ok "$1"; else bad "$1: no /$3/ in $2:"; sed 's/^/    /' "$2" | tail -20; fi; }
+contains() { if grep -qE -e "$3" "$2"; then ok "$1"; else bad "$1: no /$3/ in $2:"; sed 's/^/    /' "$2" | tail -20; fi; }
 source "$(dirname "${BASH_SOURCE[0]}")/private_domain.sh"  # take_private_domain

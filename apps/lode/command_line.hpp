@@ -1,0 +1,35 @@
+// The `lode` command line: every command and its options declared once (CLI11), so that
+// `lode CMD --help` prints that command's usage and does nothing else, an unknown or
+// misspelled option is an error naming it (with the nearest known one), and numbers, ranges
+// and choices are checked before a command runs. The commands themselves receive the parsed
+// values (Args) and never see argv.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "cli.hpp"
+
+namespace lode::cli {
+
+/// What a command does with its parsed arguments; returns the exit code.
+using CommandFunction = std::function<int(const Args&)>;
+
+/// One entry of the command table.
+struct CommandEntry {
+  std::string name;
+  CommandFunction run;
+};
+
+/// Parses argv against the command table, then runs the chosen command. Exit codes: 0, 1
+/// (the command's fault) or 2 (usage: an unknown option, a bad value, a missing argument).
+int run_command_line(int argc, char** argv, const std::vector<CommandEntry>& commands);
+
+/// The names of every declared command (the test walks them).
+std::vector<std::string> declared_commands();
+
+/// The known option of `command` nearest to `unknown` (edit distance), or "" if none is close.
+std::string nearest_option(const std::string& command, const std::string& unknown);
+
+}  // namespace lode::cli
