@@ -13,6 +13,16 @@ cmake --build "$TMP/build" >/dev/null
 test -f "$TMP/build/lode-filter.external_gain.so"
 export LODE_PLUGIN_PATH="$TMP/build"
 LODE="$TMP/prefix/bin/lode"
+# The installed man pages (one per command) and bash completion work.
+MANPATH="$TMP/prefix/share/man" MANWIDTH=80 man lode-run 2>/dev/null | grep -q -- "--duration" \
+  || { echo "FAIL: man lode-run (installed) does not show run's options"; exit 1; }
+MANPATH="$TMP/prefix/share/man" man lode 2>/dev/null | grep -q "replay" || { echo "FAIL: man lode lists no commands"; exit 1; }
+for c in $("$LODE" --help | sed -n '/^Subcommands:/,/^$/p' | awk 'NR > 1 && NF { print $1 }'); do
+  test -f "$TMP/prefix/share/man/man1/lode-$c.1" || { echo "FAIL: no man page for lode $c"; exit 1; }
+done
+completion=$(bash -c 'source "$1"; COMP_WORDS=(lode run --dur); COMP_CWORD=2; _lode; echo "${COMPREPLY[*]}"' _ \
+  "$TMP/prefix/share/bash-completion/completions/lode")
+[ "$completion" = "--duration" ] || { echo "FAIL: installed completion of 'lode run --dur' gave '$completion'"; exit 1; }
 "$LODE" plugins | grep -q "filter.external_gain" || { echo "FAIL: installed lode does not list the plugin"; exit 1; }
 "$LODE" plugins | grep -q "estimator.glsdc" || { echo "FAIL: installed lode does not find its own plugins"; exit 1; }
 "$LODE" check "$HERE/pipeline.yaml"
