@@ -853,7 +853,7 @@ TEST(Seed004, ShippedPipelineTracksTheStepsWithTheObserverInTheLoop) {
 // independently (-0.01 dB at 10 Hz ... -33.8 dB at 1 kHz), unity DC gain, -3 dB near 99.3 Hz
 // (not the 120 Hz the paper says it chose) and a group delay of about 4.7 samples at low
 // frequency.
-TEST(Seed004, Table2LowPassFilterMatchesSpecSection4) {
+TEST(Seed004, Table2LowPassFilterMatchesAnIndependentTable) {
   REQUIRE_LPF();
   auto measure = [](double f_hz, double& gain, double& delay_samples) {
     lode::testing::BlockHarness h("filter.biquad",

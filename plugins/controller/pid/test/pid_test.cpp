@@ -60,7 +60,7 @@ TEST(PidDesign, TheDerivativePoleOfEq35IsAFilterNear991RadPerSecond) {
   EXPECT_NEAR(r.denominator[1], 0.603, 1e-12);
 }
 
-TEST(PidDesign, Eq35RootsAsTheSpecReadsThem) {
+TEST(PidDesign, Eq35RootsAsPrinted) {
   // Denominator 1 - 1.604 z^-1 + 0.603 z^-2: roots 1.0025 and 0.6015 (a rounded 1 - z^-1 factor);
   // numerator -623.9 + 1020 z^-1 - 386.8 z^-2: roots 0.598 and 1.037, coefficient sum 9.3.
   const auto poles = lode::plugins::pid::quadratic_roots(1.0, -1.604, 0.603);

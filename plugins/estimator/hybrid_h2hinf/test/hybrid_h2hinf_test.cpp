@@ -96,7 +96,7 @@ std::vector<double> noisy_signal(int n, unsigned seed) {
 // ---------------------------------------------------------------------------------------------
 // Designs
 
-TEST(HybridDesign, KalmanGainsReproduceTheSpecDareTable) {
+TEST(HybridDesign, KalmanGainsMatchAnIndependentDareSolution) {
   // An independent solution of the DARE with eqs. 23, 26, 27 at 800 Hz.
   struct Row {
     const char* axis;
@@ -208,7 +208,7 @@ TEST(HybridDesign, PapersGammaTenIsInfeasibleWithUnitWeights) {
   }
 }
 
-TEST(HybridDesign, PrintedGainBandwidthsOfSpecSection33) {
+TEST(HybridDesign, PrintedEq28GainBandwidths) {
   // Computed independently: -3 dB bandwidth of the printed eq. 28 gains at 800 Hz: x/y ~9.8 Hz, theta_z
   // ~28.5 Hz, z/theta/psi ~7.1 Hz; x and z peak by +6 to +10 dB, theta_z by +3 to +4 dB.
   const AxisModel model = AxisModel::make(kT);

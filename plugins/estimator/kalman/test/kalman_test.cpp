@@ -61,7 +61,7 @@ std::string yaml_list(const std::vector<double>& values) {
 
 // --- 1. Steady-state gains --------------------------------------------------------------
 
-TEST(EstimatorKalman, SteadyStateGainsMatchSpec) {
+TEST(EstimatorKalman, SteadyStateGainsMatchAnIndependentDareSolution) {
   BlockHarness h("estimator.kalman", "q: [100, 100, 1e5]\nr: [2.2e-10, 2.2e-10, 9.6e-9]\n", kRateHz);
   h.feed("measurement", kPose);
   ASSERT_TRUE(h.configure()) << h.diagnostics();

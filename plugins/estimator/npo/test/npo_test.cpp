@@ -66,7 +66,7 @@ TEST(NpoDesign, ExactTransitionIsTheSampledContinuousErrorDynamics) {
 
 // Derived for the Table 2 gains, A0 = 1e4 (SI): poles -0.0107 / -9999.99 (translation), -5.56,
 // -5.46, -3.00 (rotations); exact update eigenvalues 0.9999957 and 0.0183; forward Euler -3.
-TEST(NpoDesign, Table2GainsReproduceSpecSection35) {
+TEST(NpoDesign, Table2GainsGiveTheDerivedPoles) {
   const std::array<double, 4> slow{-0.0107, -5.56, -5.46, -3.00};
   const std::array<double, 4> fast{-9999.99, -9994.0, -9995.0, -9997.0};
   const std::array<double, 4> mass{kM[0], kM[3], kM[4], kM[5]};

@@ -51,7 +51,7 @@ TEST(Maglev6, DeclaresPortsAndThePapersParameters) {
   EXPECT_EQ(plant.config().b_vertical_acc_per_a(1, 2), 475.071);
 }
 
-TEST(Maglev6, VerticalNaturalFrequenciesOfSpecSection11) {
+TEST(Maglev6, VerticalNaturalFrequenciesFromThePapersStiffnesses) {
   // Derived from the paper's values: z 20.2 rad/s (3.21 Hz), theta 132.5 rad/s (21.1 Hz), psi 214 rad/s (34.1 Hz).
   Maglev6 plant;
   const auto& w = plant.natural_frequency_rad_s();
@@ -181,7 +181,7 @@ TEST(Maglev6, ProcessModelSharesThePhysics) {
   }
 }
 
-TEST(Maglev6, ModeMatricesAreTheSpecStateSpace) {
+TEST(Maglev6, ModeMatricesAreTheEq11StateSpace) {
   Maglev6 plant;
   const Maglev6::Mode v = plant.vertical_mode();
   EXPECT_NEAR(v.a(3, 0), -620.0 / 1.52, 1e-9);

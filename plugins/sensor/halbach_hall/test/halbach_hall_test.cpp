@@ -44,7 +44,7 @@ double default_ratio() { return std::numbers::sqrt2 * 1.10 / 1.43; }
 // ---------------------------------------------------------------------------------------
 // Physics (eq. 3.5-3.14; README "Deviations" 1-2)
 
-TEST(HalbachPhysics, FundamentalAmplitudeAt2mmMatchesSpecTable) {
+TEST(HalbachPhysics, FundamentalAmplitudeAt2mmMatchesAnIndependentTable) {
   // Independent table, Z0 = 2 mm: 0.416 T with r = 1.088 (sqrt(2) B_r,weak / B_r,strong), 0.352 T with the
   // printed ratio 0.769. The table has three digits: tolerance half a unit of the last digit.
   const auto actual = halbach_field_harmonic(1, kPitch, 0.002, 0.0127, 1.43, default_ratio());
@@ -54,7 +54,7 @@ TEST(HalbachPhysics, FundamentalAmplitudeAt2mmMatchesSpecTable) {
   EXPECT_NEAR(printed.amplitude_t(), 0.352, 0.0005);
 }
 
-TEST(HalbachPhysics, AmplitudeTableOfSpecAllGaps) {
+TEST(HalbachPhysics, AmplitudeTableAtAllGaps) {
   struct Row {
     double gap_m, n1_r0769, n1_r1088, n3_r0769, n3_r1088, n5_r0769, n5_r1088, n5_over_n1;
   };

@@ -25,7 +25,7 @@ namespace hall = lode::plugins::hall;
 struct SpotValue {
   double c_h, distance_mm, slope_mm_per_v;
 };
-constexpr std::array<SpotValue, 9> kSpecTable{{{0.0, 46.9, -183.9},
+constexpr std::array<SpotValue, 9> kHandComputedTable{{{0.0, 46.9, -183.9},
                                                 {0.1, 33.69, -90.7},
                                                 {0.2, 27.15, -46.0},
                                                 {0.3, 23.61, -27.6},
@@ -35,10 +35,10 @@ constexpr std::array<SpotValue, 9> kSpecTable{{{0.0, 46.9, -183.9},
                                                 {0.7, 17.65, -7.9},
                                                 {0.8, 16.29, -23.4}}};
 
-TEST(HallConversion, SpotValuesOfTheSpecTable) {
+TEST(HallConversion, SpotValuesOfEq16ByHand) {
   const hall::Conversion c = hall::Conversion::paper();
   EXPECT_DOUBLE_EQ(c.distance_mm.value(0.0), 46.9);  // "no magnet field"
-  for (const SpotValue& s : kSpecTable) {
+  for (const SpotValue& s : kHandComputedTable) {
     EXPECT_NEAR(c.distance_mm.value(s.c_h), s.distance_mm, 0.01) << "C_H = " << s.c_h;
     EXPECT_NEAR(c.distance_mm.slope(s.c_h), s.slope_mm_per_v, 0.05) << "C_H = " << s.c_h;
   }
