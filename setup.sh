@@ -13,7 +13,7 @@ case "$mode" in demo|test|build) ;; *) echo "usage: $0 demo|test|build" >&2; exi
 PACKAGES=(build-essential g++ cmake make pkg-config
   libeigen3-dev libyaml-cpp-dev libspdlog-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev rt-tests libslicot-dev
-  libcli11-dev strace help2man man-db                       # the command line, its man pages; its test checks --help does nothing else
+  libcli11-dev nlohmann-json3-dev strace help2man man-db    # command line, local JSON commands, man pages; strace for the CLI test
   libfastrtps-dev libfastcdr-dev fastddsgen fastdds-tools  # telemetry over Fast DDS 2.9
   libhdf5-dev hdf5-tools python3-h5py python3-numpy        # recordings (HDF5) and their check
   openssl                                                   # DDS Security lab certificates

@@ -5,261 +5,108 @@
 #include <limits>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 namespace lode::cli {
 
 namespace {
 
-// ---------------------------------------------------------------------------------------
-// A strict parser for one flat JSON object (RFC 8259 strings, numbers, true/false).
-// Nothing else in the project parses JSON (lode::Json only writes), and the wire format is
-// deliberately flat, so ~150 lines beat a dependency.
+// One flat JSON object, read with nlohmann-json's SAX parser (RFC 8259 syntax, UTF-8 and
+// surrogate pairs, its error positions), so that this file only says what a request may be:
+// an object of strings, numbers and booleans, numbers kept as written (the service parses
+// them, and an id must stay exact to 64 bits).
 struct Scalar {
   enum class Kind { string, number, boolean } kind = Kind::string;
-  std::string text;  ///< string: decoded; number: the token as written; boolean: "true"/"false"
-  std::size_t column = 0;
+  std::string text;  ///< string: decoded; number: as written (integers in decimal); boolean: "true"/"false"
 };
 struct Member {
   std::string key;
   Scalar value;
-  std::size_t column = 0;
 };
 
-class FlatParser {
+class FlatObjectReader final : public nlohmann::json_sax<nlohmann::json> {
  public:
-  explicit FlatParser(const std::string& s) : s_(s) {}
-
-  bool parse(std::vector<Member>& out) {
-    ws();
-    if (!eat('{')) return fail(at_end() ? "empty request (expected a JSON object)" : "expected '{' (a request is one JSON object per line)");
-    ws();
-    if (eat('}')) return finish();
-    for (;;) {
-      ws();
-      Member m;
-      m.column = i_ + 1;
-      if (peek() != '"') return fail("expected a key in double quotes");
-      if (!string(m.key)) return false;
-      ws();
-      if (!eat(':')) return fail("expected ':' after key \"" + m.key + "\"");
-      ws();
-      m.value.column = i_ + 1;
-      if (!value(m.key, m.value)) return false;
-      out.push_back(std::move(m));
-      ws();
-      if (eat('}')) return finish();
-      if (!eat(',')) return fail("expected ',' or '}' after the value of \"" + out.back().key + "\"");
-    }
+  bool null() override { return refuse("null is not accepted"); }
+  bool boolean(bool value) override { return scalar(Scalar::Kind::boolean, value ? "true" : "false"); }
+  bool number_integer(number_integer_t value) override { return scalar(Scalar::Kind::number, std::to_string(value)); }
+  bool number_unsigned(number_unsigned_t value) override {
+    return scalar(Scalar::Kind::number, std::to_string(value));
   }
+  bool number_float(number_float_t, const string_t& as_written) override {
+    return scalar(Scalar::Kind::number, as_written);
+  }
+  bool string(string_t& value) override { return scalar(Scalar::Kind::string, value); }
+  bool binary(binary_t&) override { return refuse("binary values are not accepted"); }
+  bool start_object(std::size_t) override {
+    return depth_++ == 0 ? true : refuse(kNested);
+  }
+  bool end_object() override {
+    --depth_;
+    return true;
+  }
+  bool start_array(std::size_t) override { return refuse(kNested); }
+  bool end_array() override { return true; }
+  bool key(string_t& name) override {
+    members_.push_back({name, {}});
+    return true;
+  }
+  bool parse_error(std::size_t position, const std::string&, const nlohmann::detail::exception& ex) override {
+    // "[json.exception.parse_error.101] parse error at line 1, column 16: syntax error ..."
+    std::string what = ex.what();
+    if (const auto colon = what.find(": "); colon != std::string::npos && what.find("column") < colon)
+      what = what.substr(colon + 2);
+    error_ = "column " + std::to_string(position) + ": " + what;
+    return false;
+  }
+
+  [[nodiscard]] const std::vector<Member>& members() const { return members_; }
   [[nodiscard]] const std::string& error() const { return error_; }
 
  private:
-  bool finish() {
-    ws();
-    if (!at_end()) return fail("unexpected text after the closing '}' (one object per line)");
+  static constexpr const char* kNested =
+      "nested objects and arrays are not accepted (a flat object of strings, numbers and booleans)";
+  bool scalar(Scalar::Kind kind, std::string text) {
+    if (depth_ != 1 || members_.empty()) return refuse("expected '{' (a request is one JSON object per line)");
+    members_.back().value = {kind, std::move(text)};
     return true;
   }
-  bool value(const std::string& key, Scalar& v) {
-    const char c = peek();
-    if (c == '"') {
-      v.kind = Scalar::Kind::string;
-      return string(v.text);
-    }
-    if (c == '-' || (c >= '0' && c <= '9')) {
-      v.kind = Scalar::Kind::number;
-      return number(v.text);
-    }
-    if (literal("true")) {
-      v.kind = Scalar::Kind::boolean;
-      v.text = "true";
-      return true;
-    }
-    if (literal("false")) {
-      v.kind = Scalar::Kind::boolean;
-      v.text = "false";
-      return true;
-    }
-    if (literal("null")) return fail("\"" + key + "\": null is not accepted (leave the key out instead)", i_ - 4);
-    if (c == '{' || c == '[')
-      return fail("\"" + key + "\": nested objects and arrays are not accepted (a flat object of strings, numbers and booleans)");
-    if (at_end()) return fail("the line ends before the value of \"" + key + "\"");
-    return fail("\"" + key + "\": expected a string, number, true or false");
-  }
-  bool string(std::string& out) {
-    ++i_;  // opening quote
-    for (;;) {
-      if (at_end()) return fail("unterminated string");
-      const auto c = static_cast<unsigned char>(s_[i_]);
-      if (c == '"') {
-        ++i_;
-        return true;
-      }
-      if (c < 0x20) return fail("control character 0x" + hex2(c) + " inside a string (escape it)");
-      if (c != '\\') {
-        out.push_back(static_cast<char>(c));
-        ++i_;
-        continue;
-      }
-      ++i_;
-      if (at_end()) return fail("unterminated escape");
-      const char e = s_[i_++];
-      switch (e) {
-        case '"': out.push_back('"'); break;
-        case '\\': out.push_back('\\'); break;
-        case '/': out.push_back('/'); break;
-        case 'b': out.push_back('\b'); break;
-        case 'f': out.push_back('\f'); break;
-        case 'n': out.push_back('\n'); break;
-        case 'r': out.push_back('\r'); break;
-        case 't': out.push_back('\t'); break;
-        case 'u': {
-          unsigned cp = 0;
-          if (!hex4(cp)) return false;
-          if (cp >= 0xD800 && cp <= 0xDBFF) {  // surrogate pair (RFC 8259 §7)
-            unsigned lo = 0;
-            if (!(eat('\\') && eat('u'))) return fail("high surrogate \\u" + hex_of(cp) + " without its low half");
-            if (!hex4(lo)) return false;
-            if (lo < 0xDC00 || lo > 0xDFFF) return fail("\\u" + hex_of(lo) + " is not a low surrogate");
-            cp = 0x10000 + ((cp - 0xD800) << 10) + (lo - 0xDC00);
-          } else if (cp >= 0xDC00 && cp <= 0xDFFF) {
-            return fail("lone low surrogate \\u" + hex_of(cp));
-          }
-          utf8(cp, out);
-          break;
-        }
-        default: return fail(std::string("invalid escape '\\") + e + "'", i_ - 2);
-      }
-    }
-  }
-  // RFC 8259 §6: -?(0|[1-9][0-9]*)(\.[0-9]+)?([eE][+-]?[0-9]+)?
-  bool number(std::string& out) {
-    const std::size_t start = i_;
-    eat('-');
-    if (eat('0')) {
-    } else if (digit()) {
-      while (digit()) {}
-    } else {
-      return fail("malformed number");
-    }
-    if (eat('.')) {
-      if (!digit()) return fail("malformed number (digits must follow '.')");
-      while (digit()) {}
-    }
-    if (peek() == 'e' || peek() == 'E') {
-      ++i_;
-      if (!eat('+')) eat('-');
-      if (!digit()) return fail("malformed number (digits must follow the exponent)");
-      while (digit()) {}
-    }
-    out = s_.substr(start, i_ - start);
-    return true;
-  }
-  bool hex4(unsigned& v) {
-    v = 0;
-    for (int k = 0; k < 4; ++k) {
-      if (at_end()) return fail("\\u needs four hex digits");
-      const char c = s_[i_];
-      unsigned d = 0;
-      if (c >= '0' && c <= '9') d = static_cast<unsigned>(c - '0');
-      else if (c >= 'a' && c <= 'f') d = static_cast<unsigned>(c - 'a' + 10);
-      else if (c >= 'A' && c <= 'F') d = static_cast<unsigned>(c - 'A' + 10);
-      else return fail("\\u needs four hex digits");
-      v = v * 16 + d;
-      ++i_;
-    }
-    return true;
-  }
-  static void utf8(unsigned cp, std::string& out) {
-    if (cp < 0x80) {
-      out.push_back(static_cast<char>(cp));
-    } else if (cp < 0x800) {
-      out.push_back(static_cast<char>(0xC0 | (cp >> 6)));
-      out.push_back(static_cast<char>(0x80 | (cp & 0x3F)));
-    } else if (cp < 0x10000) {
-      out.push_back(static_cast<char>(0xE0 | (cp >> 12)));
-      out.push_back(static_cast<char>(0x80 | ((cp >> 6) & 0x3F)));
-      out.push_back(static_cast<char>(0x80 | (cp & 0x3F)));
-    } else {
-      out.push_back(static_cast<char>(0xF0 | (cp >> 18)));
-      out.push_back(static_cast<char>(0x80 | ((cp >> 12) & 0x3F)));
-      out.push_back(static_cast<char>(0x80 | ((cp >> 6) & 0x3F)));
-      out.push_back(static_cast<char>(0x80 | (cp & 0x3F)));
-    }
-  }
-  static std::string hex2(unsigned c) {
-    char b[8];
-    std::snprintf(b, sizeof b, "%02x", c);
-    return b;
-  }
-  static std::string hex_of(unsigned c) {
-    char b[8];
-    std::snprintf(b, sizeof b, "%04x", c);
-    return b;
-  }
-  bool digit() {
-    if (i_ < s_.size() && s_[i_] >= '0' && s_[i_] <= '9') {
-      ++i_;
-      return true;
-    }
-    return false;
-  }
-  bool literal(const char* word) {
-    const std::size_t n = std::strlen(word);
-    if (s_.compare(i_, n, word) != 0) return false;
-    i_ += n;
-    return true;
-  }
-  void ws() {
-    while (i_ < s_.size() && (s_[i_] == ' ' || s_[i_] == '\t' || s_[i_] == '\r' || s_[i_] == '\n')) ++i_;
-  }
-  bool eat(char c) {
-    if (i_ < s_.size() && s_[i_] == c) {
-      ++i_;
-      return true;
-    }
-    return false;
-  }
-  [[nodiscard]] char peek() const { return i_ < s_.size() ? s_[i_] : '\0'; }
-  [[nodiscard]] bool at_end() const { return i_ >= s_.size(); }
-  bool fail(const std::string& what) { return fail(what, i_); }
-  bool fail(const std::string& what, std::size_t at) {
-    error_ = "column " + std::to_string(at + 1) + ": " + what;
+  bool refuse(const std::string& why) {
+    error_ = members_.empty() ? why : "\"" + members_.back().key + "\": " + why;
     return false;
   }
 
-  const std::string& s_;
-  std::size_t i_ = 0;
+  int depth_ = 0;
+  std::vector<Member> members_;
   std::string error_;
 };
 
-void escape_into(std::string& out, const std::string& s) {
-  out.push_back('"');
-  for (const char ch : s) {
-    const auto c = static_cast<unsigned char>(ch);
-    switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\r': out += "\\r"; break;
-      case '\t': out += "\\t"; break;
-      case '\b': out += "\\b"; break;
-      case '\f': out += "\\f"; break;
-      default:
-        if (c < 0x20 || c == 0x7f) {
-          char b[8];
-          std::snprintf(b, sizeof b, "\\u%04x", c);
-          out += b;
-        } else {
-          out.push_back(ch);  // UTF-8 passes through
-        }
-    }
+/// Parses `line` into `out`; false with `error` set when it is not one flat object.
+bool parse_flat_object(const std::string& line, std::vector<Member>& out, std::string& error) {
+  const auto first = line.find_first_not_of(" \t\r");
+  if (first == std::string::npos) {
+    error = "empty request (expected a JSON object)";
+    return false;
   }
-  out.push_back('"');
+  if (line[first] != '{') {
+    error = "column " + std::to_string(first + 1) + ": expected '{' (a request is one JSON object per line)";
+    return false;
+  }
+  FlatObjectReader reader;
+  const bool ok = nlohmann::json::sax_parse(line, &reader, nlohmann::json::input_format_t::json, true);
+  out = reader.members();
+  if (!ok) error = reader.error();
+  return ok;
+}
+
+/// A JSON string; bytes that are not UTF-8 become U+FFFD rather than an exception.
+void escape_into(std::string& out, const std::string& text) {
+  out += nlohmann::json(text).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
 }
 
 /// Exact unsigned 64-bit id (lode::Json keeps 10 digits, which is why it is not used here).
 bool parse_id(const Scalar& v, std::uint64_t& id, std::string& error) {
   const auto bad = [&](const std::string& why) {
-    error = "column " + std::to_string(v.column) + ": \"id\" " + why;
+    error = "\"id\" " + why;
     return false;
   };
   if (v.kind != Scalar::Kind::number) return bad("must be a number");
@@ -279,7 +126,7 @@ bool check_duplicates(const std::vector<Member>& members, std::string& error) {
   for (std::size_t a = 0; a < members.size(); ++a)
     for (std::size_t b = 0; b < a; ++b)
       if (members[a].key == members[b].key) {
-        error = "column " + std::to_string(members[a].column) + ": duplicate key \"" + members[a].key + "\"";
+        error = "duplicate key \"" + members[a].key + "\"";
         return false;
       }
   return true;
@@ -315,8 +162,8 @@ std::string encode_reply(const ControlReply& r) {
 
 Expected<ControlRequest> decode_request(const std::string& line, std::uint64_t* id_seen) {
   std::vector<Member> members;
-  FlatParser parser(line);
-  const bool parsed = parser.parse(members);
+  std::string parse_error;
+  const bool parsed = parse_flat_object(line, members, parse_error);
   // The id, when it was read, goes back even with a syntax error later in the line, so the
   // client can match the refusal to its request.
   std::string error;
@@ -327,13 +174,13 @@ Expected<ControlRequest> decode_request(const std::string& line, std::uint64_t* 
       has_id = true;
       if (id_seen) *id_seen = r.id;
     }
-  if (!parsed) return Status::error(parser.error());
+  if (!parsed) return Status::error(parse_error);
   if (!check_duplicates(members, error)) return Status::error(error);
   bool has_kind = false;
   for (const auto& m : members) {
     const auto need_string = [&](std::string& into) {
       if (m.value.kind != Scalar::Kind::string) {
-        error = "column " + std::to_string(m.value.column) + ": \"" + m.key + "\" must be a string";
+        error = "\"" + m.key + "\" must be a string";
         return false;
       }
       into = m.value.text;
@@ -355,7 +202,7 @@ Expected<ControlRequest> decode_request(const std::string& line, std::uint64_t* 
     } else if (m.key == "value") {
       r.value = m.value.text;  // a string, a number as written, or true/false: the service parses it
     } else {
-      return Status::error("column " + std::to_string(m.column) + ": unknown key \"" + m.key +
+      return Status::error("unknown key \"" + m.key +
                            "\" (a request has id, kind, block, name, value, plugin, client)");
     }
   }
@@ -367,15 +214,15 @@ Expected<ControlRequest> decode_request(const std::string& line, std::uint64_t* 
 
 Expected<ControlReply> decode_reply(const std::string& line) {
   std::vector<Member> members;
-  FlatParser parser(line);
-  if (!parser.parse(members)) return Status::error("malformed reply: " + parser.error());
+  std::string parse_error;
+  if (!parse_flat_object(line, members, parse_error)) return Status::error("malformed reply: " + parse_error);
   std::string error;
   if (!check_duplicates(members, error)) return Status::error("malformed reply: " + error);
   ControlReply r;
   bool has_ok = false;
   for (const auto& m : members) {
     const auto wrong = [&](const char* what) {
-      return Status::error("malformed reply: column " + std::to_string(m.value.column) + ": \"" + m.key + "\" must be " + what);
+      return Status::error("malformed reply: \"" + m.key + "\" must be " + what);
     };
     if (m.key == "id") {
       if (!parse_id(m.value, r.id, error)) return Status::error("malformed reply: " + error);

@@ -22,8 +22,9 @@ namespace lode::cli {
 /// One line, no trailing newline.
 std::string encode_request(const ControlRequest& r);
 std::string encode_reply(const ControlReply& r);
-/// Strict: a flat object with the keys above. On error the message says what and at which
-/// column (1-based); `id_seen` gets the id if it was read before the error.
+/// Strict: a flat object with the keys above (parsed by nlohmann-json). On error the message
+/// says what, and for a syntax error at which column (1-based); `id_seen` gets the id if it
+/// was read before the error.
 Expected<ControlRequest> decode_request(const std::string& line, std::uint64_t* id_seen = nullptr);
 Expected<ControlReply> decode_reply(const std::string& line);
 
