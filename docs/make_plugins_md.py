@@ -1,0 +1,53 @@
+#!/usr/bin/env python3
+"""docs/plugins.md from `lode plugins --json`: the catalogue of shipped plugins with their
+ports and parameters. The plugins_md_test regenerates it and fails when the committed file
+differs, so it cannot go stale.
+
+usage: lode plugins --json | docs/make_plugins_md.py > docs/plugins.md
+"""
+import json
+import sys
+
+
+def cell(text):
+    return str(text).replace("|", "\\|").replace("\n", " ")
+
+
+def main():
+    plugins = sorted(json.load(sys.stdin), key=lambda p: p["name"])
+    out = ["# Plugins", "",
+           "Every plugin shipped with lodestone, with its ports and parameters. Generated from",
+           "`lode plugins --json` by `docs/make_plugins_md.py`; `lode plugins NAME` shows one on",
+           "the command line. Each plugin's own README (`plugins/<kind>/<name>/README.md`) has the",
+           "equations, units and measured figures.", ""]
+    kinds = {}
+    for p in plugins:
+        kinds.setdefault(p["name"].split(".")[0], []).append(p)
+    out.append("| plugin | summary |")
+    out.append("|---|---|")
+    for p in plugins:
+        out.append(f"| [`{p['name']}`](#{p['name'].replace('.', '')}) | {cell(p['summary'])} |")
+    out.append("")
+    for p in plugins:
+        out.append(f"## {p['name']}")
+        out.append("")
+        out.append(f"{cell(p['summary'])} (version {p['version']}, {p['kind']})")
+        out.append("")
+        if p["ports"]:
+            out.append("| port | direction | what |")
+            out.append("|---|---|---|")
+            for port in p["ports"]:
+                out.append(f"| `{port['name']}` | {port['direction']} | {cell(port['description'])} |")
+            out.append("")
+        if p["parameters"]:
+            out.append("| parameter | type | default | what |")
+            out.append("|---|---|---|---|")
+            for q in p["parameters"]:
+                default = "(required)" if q["default"] is None else f"`{cell(q['default'])}`"
+                out.append(f"| `{q['name']}` | {cell(q['type'])} | {default} | {cell(q['description'])} |")
+            out.append("")
+    sys.stdout.write("\n".join(out))
+
+
+if __name__ == "__main__":
+    main()
