@@ -333,22 +333,6 @@ std::string bash_completion() {
   return out;
 }
 
-std::vector<std::string> declared_commands() {
-  Args ignored;
-  const auto tree = build_tree(ignored);
-  std::vector<std::string> names;
-  for (const auto& [name, app] : tree->commands) names.push_back(name);
-  return names;
-}
-
-std::string nearest_option(const std::string& command, const std::string& unknown) {
-  Args ignored;
-  const auto tree = build_tree(ignored);
-  for (const auto& [name, app] : tree->commands)
-    if (name == command) return nearest_in(long_names(app), unknown);
-  return nearest_in(long_names(&tree->app), unknown);
-}
-
 int run_command_line(int argc, char** argv, const std::vector<CommandEntry>& commands) {
   Args args;
   const auto tree = build_tree(args);

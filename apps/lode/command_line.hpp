@@ -26,15 +26,9 @@ struct CommandEntry {
 /// (the command's fault) or 2 (usage: an unknown option, a bad value, a missing argument).
 int run_command_line(int argc, char** argv, const std::vector<CommandEntry>& commands);
 
-/// The names of every declared command (the test walks them).
-std::vector<std::string> declared_commands();
-
 /// A bash completion script for `lode`, generated from the same declarations: commands,
 /// each command's options, the choices of an option that has them, and pipeline files
 /// (*.yaml) or recordings (*.h5) where a command takes one. `lode --bash-completion` prints it.
 std::string bash_completion();
-
-/// The known option of `command` nearest to `unknown` (edit distance), or "" if none is close.
-std::string nearest_option(const std::string& command, const std::string& unknown);
 
 }  // namespace lode::cli
