@@ -13,6 +13,14 @@ def cell(text):
     return str(text).replace("|", "\\|").replace("\n", " ")
 
 
+def table(header, rows):
+    """A markdown table (nothing when there are no rows), followed by a blank line."""
+    if not rows:
+        return []
+    return (["| " + " | ".join(header) + " |", "|" + "---|" * len(header)] +
+            ["| " + " | ".join(row) + " |" for row in rows] + [""])
+
+
 def main():
     plugins = sorted(json.load(sys.stdin), key=lambda p: p["name"])
     out = ["# Plugins", "",
@@ -33,19 +41,12 @@ def main():
         out.append("")
         out.append(f"{cell(p['summary'])} (version {p['version']}, {p['kind']})")
         out.append("")
-        if p["ports"]:
-            out.append("| port | direction | what |")
-            out.append("|---|---|---|")
-            for port in p["ports"]:
-                out.append(f"| `{port['name']}` | {port['direction']} | {cell(port['description'])} |")
-            out.append("")
-        if p["parameters"]:
-            out.append("| parameter | type | default | what |")
-            out.append("|---|---|---|---|")
-            for q in p["parameters"]:
-                default = "(required)" if q["default"] is None else f"`{cell(q['default'])}`"
-                out.append(f"| `{q['name']}` | {cell(q['type'])} | {default} | {cell(q['description'])} |")
-            out.append("")
+        out += table(["port", "direction", "what"],
+                     [[f"`{port['name']}`", port["direction"], cell(port["description"])] for port in p["ports"]])
+        out += table(["parameter", "type", "default", "what"],
+                     [[f"`{q['name']}`", cell(q["type"]),
+                       "(required)" if q["default"] is None else f"`{cell(q['default'])}`", cell(q["description"])]
+                      for q in p["parameters"]])
     sys.stdout.write("\n".join(out))
 
 
