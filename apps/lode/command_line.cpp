@@ -144,7 +144,7 @@ std::unique_ptr<Tree> build_tree(Args& args) {
     d.text("--summary-json", "FILE", "write the summary as JSON");
     d.flag("--quiet", "no status line");
     d.text("--record", "FILE.h5", "record every output at full rate (HDF5)");
-    d.integer("--domain", "N", "DDS domain of the telemetry (overrides telemetry.domain)", 0, 232);
+    d.integer("--domain", "N", "DDS domain of the telemetry (overrides LODE_DDS_DOMAIN, which overrides telemetry.domain)", 0, 232);
     d.flag("--no-telemetry", "do not publish over DDS");
     d.integer("--wait-subscribers", "N", "wait for N subscribers before starting", 0, 1000);
     d.number("--wait", "S", "how long --wait-subscribers waits (default 10)", 0, 3600);

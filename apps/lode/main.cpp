@@ -235,10 +235,20 @@ int cmd_run(const Args& args) {
   service_options.simulated = clock_name == "sim";
   service_options.local_control = !args.has_flag("--no-local-control");
   service_options.record_path = args.option("--record");
+  // --domain, else LODE_DDS_DOMAIN, else the YAML's telemetry.domain: the environment that
+  // points `lode echo` at a domain points the pipeline's publisher at the same one.
   if (args.has("--domain")) {
     const auto d = lode::cli::number_option(args, "--domain", 0, 0, 232);
     if (!d) return kExitConfig;
     service_options.domain = static_cast<int>(*d);
+  } else if (const char* env = std::getenv("LODE_DDS_DOMAIN"); env != nullptr && *env != '\0') {
+    char* end = nullptr;
+    const long d = std::strtol(env, &end, 10);
+    if (*end != '\0' || d < 0 || d > 232) {
+      std::fprintf(stderr, "lode: LODE_DDS_DOMAIN must be an integer in [0, 232], got '%s'\n", env);
+      return kExitConfig;
+    }
+    service_options.domain = static_cast<int>(d);
   }
   if (args.has("--wait-subscribers")) {
     const auto n = lode::cli::number_option(args, "--wait-subscribers", 0, 0, 1000);
