@@ -1,7 +1,6 @@
 #include "cli.hpp"
 
 #include <csignal>
-#include <cstdio>
 #include <cstdlib>
 
 namespace lode::cli {
@@ -20,17 +19,14 @@ void install_stop_handlers() {
   std::signal(SIGTERM, on_stop_signal);
 }
 
-std::optional<double> number_option(const Args& args, const std::string& name, double fallback, double min,
-                                    double max) {
-  if (!args.has(name)) return fallback;
-  const std::string text = args.option(name);
-  char* end = nullptr;
-  const double v = std::strtod(text.c_str(), &end);
-  if (text.empty() || !end || *end || !(v >= min && v <= max)) {
-    std::fprintf(stderr, "lode: %s must be a number in [%g, %g], got '%s'\n", name.c_str(), min, max, text.c_str());
-    return std::nullopt;
-  }
-  return v;
+double Args::number(const std::string& o, double fallback) const {
+  const auto it = options.find(o);
+  return it == options.end() ? fallback : std::strtod(it->second.c_str(), nullptr);
+}
+
+long long Args::integer(const std::string& o, long long fallback) const {
+  const auto it = options.find(o);
+  return it == options.end() ? fallback : std::strtoll(it->second.c_str(), nullptr, 10);
 }
 
 }  // namespace lode::cli

@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <atomic>
 #include <map>
-#include <optional>
 #include <string>
 #include <vector>
 
@@ -28,20 +27,15 @@ struct Args {
     auto it = options.find(o);
     return it == options.end() ? fallback : it->second;
   }
+  /// A number option's value. The command line has already checked it against the range the
+  /// option declares (command_line.hpp), so the range is written in one place only.
+  [[nodiscard]] double number(const std::string& o, double fallback) const;
+  /// An integer option's value (checked by the command line like number()).
+  [[nodiscard]] long long integer(const std::string& o, long long fallback) const;
 };
-
-/// Parse a number option; prints the problem and returns nullopt when malformed.
-std::optional<double> number_option(const Args& args, const std::string& name, double fallback, double min,
-                                    double max);
 
 /// Set by SIGINT/SIGTERM.
 std::atomic<bool>& stop_requested();
 void install_stop_handlers();
-
-int cmd_topics(const Args& args);
-int cmd_echo(const Args& args);
-int cmd_record(const Args& args);
-int cmd_set(const Args& args);
-int cmd_swap(const Args& args);
 
 }  // namespace lode::cli

@@ -51,75 +51,78 @@ CLI::Validator number_in(double min, double max) {
       "");
 }
 
-/// Declares options on one command; each writes what it received into `args`, the one
-/// structure the commands read. (The callbacks hold `args`, never the Declare, which is gone
-/// by the time they run.)
-class Declare {
- public:
-  Declare(CLI::App* app, Args& args) : app_(app), args_(args) {}
+}  // namespace
 
-  CLI::Option* text(const std::string& name, const std::string& value_name, const std::string& description) {
-    return app_
-        ->add_option_function<std::string>(
-            name, [&args = args_, name](const std::string& value) { args.options[name] = value; }, description)
-        ->type_name(value_name);
-  }
-  CLI::Option* integer(const std::string& name, const std::string& value_name, const std::string& description,
-                       long long min, long long max) {
-    return text(name, value_name, description)->check(integer_in(min, max));
-  }
-  CLI::Option* number(const std::string& name, const std::string& value_name, const std::string& description,
-                      double min, double max) {
-    return text(name, value_name, description)->check(number_in(min, max));
-  }
-  CLI::Option* choice(const std::string& name, const std::vector<std::string>& choices,
-                      const std::string& description) {
-    std::string names;
-    for (const auto& c : choices) names += (names.empty() ? "" : "|") + c;
-    return text(name, names, description)->check(CLI::IsMember(choices));
-  }
-  CLI::Option* flag(const std::string& name, const std::string& description) {
-    return app_->add_flag_callback(name, [&args = args_, name] { args.flags.push_back(name); }, description);
-  }
-  /// Positional arguments, `min` to `max` of them, in order.
-  CLI::Option* positional(const std::string& name, const std::string& description, int min, int max) {
-    auto* o = app_->add_option_function<std::vector<std::string>>(
-        name, [&args = args_](const std::vector<std::string>& values) { args.positional = values; }, description);
-    o->expected(min, max);
-    if (min > 0) o->required();
-    return o;
-  }
+CLI::Option* Declare::text(const std::string& name, const std::string& value_name, const std::string& description) {
+  return app_
+      ->add_option_function<std::string>(
+          name, [&args = args_, name](const std::string& value) { args.options[name] = value; }, description)
+      ->type_name(value_name);
+}
 
-  /// Where a remote command finds its participants.
-  void dds_options() {
-    auto* group = app_->add_option_group("DDS", "where the pipelines are (default: LODE_DDS_* environment)");
-    Declare g(group, args_);
-    g.integer("--domain", "N", "DDS domain id", 0, 232);
-    g.choice("--transport", {"loopback", "shm", "udp_loopback", "network"}, "DDS transport");
-    g.text("--peers", "A,B", "unicast discovery peers (host or host:port)");
-    g.text("--interfaces", "A,B", "network interfaces to use");
-    g.text("--name", "NAME", "this participant's name (what allow_participants matches)");
-  }
-  /// set, swap and record --remote-*: the local socket of a pipeline on this host, else DDS.
-  void command_route_options() {
-    flag("--local", "only the local socket of a pipeline running on this host");
-    flag("--dds", "only DDS (even when the pipeline runs on this host)");
-    text("--pipeline", "NAME", "the pipeline to command when several run");
-    number("--timeout", "S", "how long to wait for the reply (default 5)", 0.01, 600);
-    number("--wait", "S", "how long to wait for the pipeline to appear (default 3)", 0, 3600);
-  }
+CLI::Option* Declare::integer(const std::string& name, const std::string& value_name, const std::string& description,
+                              long long min, long long max) {
+  return text(name, value_name, description)->check(integer_in(min, max));
+}
 
- private:
-  CLI::App* app_;
-  Args& args_;
-};
+CLI::Option* Declare::number(const std::string& name, const std::string& value_name, const std::string& description,
+                             double min, double max) {
+  return text(name, value_name, description)->check(number_in(min, max));
+}
+
+CLI::Option* Declare::choice(const std::string& name, const std::vector<std::string>& choices,
+                             const std::string& description) {
+  std::string names;
+  for (const auto& c : choices) names += (names.empty() ? "" : "|") + c;
+  return text(name, names, description)->check(CLI::IsMember(choices));
+}
+
+CLI::Option* Declare::flag(const std::string& name, const std::string& description) {
+  return app_->add_flag_callback(name, [&args = args_, name] { args.flags.push_back(name); }, description);
+}
+
+CLI::Option* Declare::list(const std::string& name, const std::string& value_name, const std::string& description) {
+  return app_
+      ->add_option_function<std::vector<std::string>>(
+          name, [&args = args_, name](const std::vector<std::string>& v) { args.lists[name] = v; }, description)
+      ->type_name(value_name)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+}
+
+CLI::Option* Declare::positional(const std::string& name, const std::string& description, int min, int max) {
+  auto* o = app_->add_option_function<std::vector<std::string>>(
+      name, [&args = args_](const std::vector<std::string>& values) { args.positional = values; }, description);
+  o->expected(min, max);
+  if (min > 0) o->required();
+  return o;
+}
+
+void Declare::dds_options() {
+  auto* group = app_->add_option_group("DDS", "where the pipelines are (default: LODE_DDS_* environment)");
+  Declare g(group, args_);
+  g.integer("--domain", "N", "DDS domain id", 0, 232);
+  g.choice("--transport", {"loopback", "shm", "udp_loopback", "network"}, "DDS transport");
+  g.text("--peers", "A,B", "unicast discovery peers (host or host:port)");
+  g.text("--interfaces", "A,B", "network interfaces to use");
+  g.text("--name", "NAME", "this participant's name (what allow_participants matches)");
+}
+
+void Declare::command_route_options() {
+  flag("--local", "only the local socket of a pipeline running on this host");
+  flag("--dds", "only DDS (even when the pipeline runs on this host)");
+  text("--pipeline", "NAME", "the pipeline to command when several run");
+  number("--timeout", "S", "how long to wait for the reply (default 5)", 0.01, 600);
+  number("--wait", "S", "how long to wait for the pipeline to appear (default 3)", 0, 3600);
+}
+
+namespace {
 
 struct Tree {
   CLI::App app{"lode: run, check and inspect lodestone pipelines", "lode"};
   std::vector<std::pair<std::string, CLI::App*>> commands;
 };
 
-std::unique_ptr<Tree> build_tree(Args& args) {
+std::unique_ptr<Tree> build_tree(Args& args, const std::vector<Command>& commands) {
   auto tree = std::make_unique<Tree>();
   CLI::App& app = tree->app;
   app.footer(kFooter);
@@ -127,115 +130,12 @@ std::unique_ptr<Tree> build_tree(Args& args) {
   app.add_flag("--bash-completion")->description("print a bash completion script")->group("");
   app.set_version_flag("--version",
                        std::string("lode ") + LODE_VERSION + ", plugin ABI " + std::to_string(kPluginAbiVersion));
-  const auto command = [&](const std::string& name, const std::string& description) {
-    CLI::App* sub = app.add_subcommand(name, description);
+  for (const auto& command : commands) {
+    CLI::App* sub = app.add_subcommand(command.name, command.description);
     sub->footer(kFooter);
-    tree->commands.emplace_back(name, sub);
-    return Declare(sub, args);
-  };
-
-  {
-    auto d = command("run", "run a pipeline: live status line and a summary at the end; publishes the "
-                            "YAML's telemetry: topics over Fast DDS; serves set/swap/record commands on "
-                            "the local socket $XDG_RUNTIME_DIR/lode/PIPELINE.sock");
-    d.positional("CONFIG", "the pipeline file", 1, 1);
-    d.number("--duration", "S", "how long to run (default: the pipeline's duration_s, else until Ctrl-C)", 0, 1e9);
-    d.choice("--clock", {"sim", "real"}, "the clock (default: the pipeline's realtime.clock, else sim)");
-    d.text("--summary-json", "FILE", "write the summary as JSON");
-    d.flag("--quiet", "no status line");
-    d.text("--record", "FILE.h5", "record every output at full rate (HDF5)");
-    d.integer("--domain", "N", "DDS domain of the telemetry (overrides LODE_DDS_DOMAIN, which overrides telemetry.domain)", 0, 232);
-    d.flag("--no-telemetry", "do not publish over DDS");
-    d.integer("--wait-subscribers", "N", "wait for N subscribers before starting", 0, 1000);
-    d.number("--wait", "S", "how long --wait-subscribers waits (default 10)", 0, 3600);
-    d.number("--speed", "X", "simulated clock: at most X times real time", 1e-6, 1e9);
-    d.flag("--no-local-control", "do not serve commands on the local socket");
-  }
-  command("check", "validate a pipeline; every problem with file:line:column")
-      .positional("CONFIG", "the pipeline file", 1, 1);
-  command("describe", "the resolved pipeline as JSON, with every derived quantity")
-      .positional("CONFIG", "the pipeline file", 1, 1);
-  {
-    auto d = command("plugins", "installed plugins with their parameters and ports");
-    d.positional("NAME", "show this plugin only (e.g. filter.biquad)", 0, 1);
-    d.flag("--json", "as JSON");
-  }
-  {
-    auto d = command("replay", "run a recording's raw inputs (lode run --record) through the recorded "
-                               "configuration (checked bit for bit) and other estimator sets at full speed; "
-                               "writes OUT.h5 per configuration and a comparison report");
-    d.positional("RECORDING", "a recording written by lode run --record", 1, 1);
-    CLI::App* sub = tree->commands.back().second;
-    sub->add_option_function<std::vector<std::string>>(
-           "--config", [&args](const std::vector<std::string>& v) { args.lists["--config"] = v; },
-           "another pipeline to replay the inputs through (repeatable)")
-        ->type_name("OTHER.yaml")
-        ->take_all()
-        ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
-    sub->add_option_function<std::vector<std::string>>(
-           "--estimate", [&args](const std::vector<std::string>& v) { args.lists["--estimate"] = v; },
-           "another output to compare (repeatable)")
-        ->type_name("BLOCK.PORT")
-        ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
-    d.text("--output", "OUT.h5", "where the replayed outputs go (one file per configuration)");
-    d.text("--report", "R.md|R.json", "write the comparison report");
-    d.text("--reference", "BLOCK.PORT", "what the estimators are compared against (default monitor.truth)");
-    d.flag("--quiet", "no progress");
-  }
-  {
-    auto d = command("bench", "per-block and whole-cycle step cost (simulated clock)");
-    d.positional("CONFIG", "the pipeline file", 1, 1);
-    d.integer("--cycles", "N", "how many cycles (default 20000)", 1, 1000000000);
-  }
-  command("rtcheck", "how fit this host is for real-time runs, with advice");
-  {
-    auto d = command("topics", "the live lodestone topics with rates, element names and units");
-    d.flag("--json", "as JSON");
-    d.number("--wait", "S", "how long to listen (default 2)", 0, 3600);
-    d.dds_options();
-  }
-  {
-    auto d = command("echo", "live samples: one line per sample (cycle, time, values) or a table");
-    d.positional("TOPIC", "a topic, BLOCK.PORT, state, events or timing", 1, 1);
-    d.integer("--count", "N", "stop after N samples", 1, 1000000000000LL);
-    d.number("--duration", "S", "stop after S seconds", 0, 1e9);
-    d.flag("--table", "a table that updates in place");
-    d.flag("--latency", "print the delivery latency of each sample");
-    d.flag("--quiet", "no header line");
-    d.text("--pipeline", "NAME", "the pipeline whose topic (or events, timing) to show when several run");
-    d.number("--wait", "S", "how long to wait for the topic (default 3)", 0, 3600);
-    d.dds_options();
-  }
-  {
-    auto d = command("record", "record live topics and events to HDF5 (stops on Ctrl-C, --duration, or when "
-                               "the pipelines stop); or ask a running pipeline to record on its own host");
-    d.positional("FILE", "the HDF5 file to write", 0, 1);
-    d.text("--topics", "A,B", "only these topics");
-    d.number("--duration", "S", "stop after S seconds", 0, 1e9);
-    d.text("--remote-start", "FILE", "ask the running pipeline to record every output into FILE on its host");
-    d.flag("--remote-stop", "ask the running pipeline to stop recording");
-    d.flag("--quiet", "no progress");
-    d.command_route_options();
-    d.dds_options();
-  }
-  {
-    auto d = command("set", "change (or read) a runtime parameter of a running pipeline; the reply says "
-                            "what happened");
-    d.positional("TARGET", "[PIPELINE/]BLOCK.PARAM [VALUE], or with --list an optional BLOCK", 0, 2);
-    d.flag("--list", "list the runtime parameters (of BLOCK)");
-    d.command_route_options();
-    d.dds_options();
-  }
-  {
-    auto d = command("swap", "hot-swap an estimator of a running pipeline (state handed over at a cycle "
-                             "boundary) or promote a shadow");
-    d.positional("ARGS", "[PIPELINE/]BLOCK PLUGIN: the block and the plugin to swap in", 0, 2);
-    d.text("--params", "'{k: v}'", "the new block's parameters (YAML flow map)");
-    d.integer("--shadow-cycles", "N", "run the newcomer as a shadow for N cycles first", 0, 1000000000);
-    d.flag("--cold", "no state handover");
-    d.text("--promote", "SHADOW", "promote a shadow to the running estimator");
-    d.command_route_options();
-    d.dds_options();
+    tree->commands.emplace_back(command.name, sub);
+    Declare declare(sub, args);
+    command.declare(declare);
   }
   return tree;
 }
@@ -282,18 +182,18 @@ std::string nearest_in(const std::vector<std::string>& known, const std::string&
 
 }  // namespace
 
-std::string bash_completion() {
+std::string bash_completion(const std::vector<Command>& commands) {
   Args ignored;
-  const auto tree = build_tree(ignored);
-  std::string commands;
-  for (const auto& [name, app] : tree->commands) commands += (commands.empty() ? "" : " ") + name;
+  const auto tree = build_tree(ignored, commands);
+  std::string names;
+  for (const auto& [name, app] : tree->commands) names += (names.empty() ? "" : " ") + name;
   std::string out =
       "# bash completion for lode, generated by `lode --bash-completion` from its own option\n"
       "# declarations.\n"
       "_lode() {\n"
       "  local cur=${COMP_WORDS[COMP_CWORD]} prev=${COMP_WORDS[COMP_CWORD-1]} cmd=${COMP_WORDS[1]}\n"
       "  if [ \"$COMP_CWORD\" -eq 1 ]; then\n"
-      "    COMPREPLY=($(compgen -W \"" + commands + " --help --version\" -- \"$cur\")); return\n"
+      "    COMPREPLY=($(compgen -W \"" + names + " --help --version\" -- \"$cur\")); return\n"
       "  fi\n"
       "  case \"$cmd\" in\n";
   for (const auto& [name, app] : tree->commands) {
@@ -333,9 +233,9 @@ std::string bash_completion() {
   return out;
 }
 
-int run_command_line(int argc, char** argv, const std::vector<CommandEntry>& commands) {
+int run_command_line(int argc, char** argv, const std::vector<Command>& commands) {
   Args args;
-  const auto tree = build_tree(args);
+  const auto tree = build_tree(args, commands);
   CLI::App& app = tree->app;
   try {
     app.parse(argc, argv);
@@ -379,7 +279,7 @@ int run_command_line(int argc, char** argv, const std::vector<CommandEntry>& com
     return kExitConfig;
   }
   if (app.count("--bash-completion") > 0) {
-    std::fputs(bash_completion().c_str(), stdout);
+    std::fputs(bash_completion(commands).c_str(), stdout);
     return kExitOk;
   }
   for (const auto& [name, sub] : tree->commands) {

@@ -1,0 +1,201 @@
+// lode record FILE: every live topic (or --topics) and the events into one HDF5 file until
+// Ctrl-C, --duration, or the pipelines stop; a lost sample is counted per series and makes
+// the exit code 1. With --remote-start/--remote-stop: ask the running pipeline to record
+// every output on its own host instead.
+#include <cstdio>
+#include <deque>
+#include <map>
+#include <mutex>
+#include <set>
+#include <thread>
+
+#include "commands.hpp"
+#include "lode/record/hdf5_recorder.hpp"
+#include "remote_client.hpp"
+
+namespace lode::cli {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+int record_topics(const Args& args) {
+  if (args.positional.size() != 1) {
+    std::fprintf(stderr, "lode record: give the FILE to write (or --remote-start FILE / --remote-stop)\n"
+                         "see: lode record --help\n");
+    return kExitConfig;
+  }
+  const double duration = args.number("--duration", 0.0);
+  const std::string path = args.positional[0];
+  const auto wanted = split_list(args.option("--topics"));
+  auto client = make_client(args, "record");
+  if (!client) return kExitConfig;
+  auto recorder = record::Recorder::create(path, "lode record");
+  if (!recorder) {
+    std::fprintf(stderr, "lode: %s\n", recorder.error().c_str());
+    return kExitFault;
+  }
+  auto& rec = **recorder;
+  install_stop_handlers();
+  StopWatch watch(duration);
+
+  // Listener threads queue; this thread writes (the recorder is single-threaded).
+  struct Row {
+    int series;
+    dds::Sample sample;
+  };
+  struct EventRow {
+    dds::EventSample event;
+  };
+  std::mutex queue_mutex;
+  std::deque<Row> rows;
+  std::deque<EventRow> event_rows;
+  std::vector<std::unique_ptr<dds::Subscription>> subs;
+  std::map<std::string, int> series_of_topic;
+  std::set<std::string> pipelines_followed;
+  std::set<std::string> names_used;
+
+  auto matches = [&](const dds::SignalMeta& m) {
+    if (wanted.empty()) return true;
+    for (const auto& w : wanted) {
+      auto r = client->resolve(w, milliseconds(0));
+      if (r && r->topic == m.topic) return true;
+    }
+    return false;
+  };
+  auto follow_new_topics = [&](milliseconds wait) -> bool {
+    bool any = false;
+    for (const auto& m : client->signals(wait)) {
+      if (series_of_topic.count(m.topic) || !matches(m)) continue;
+      record::SeriesInfo info;
+      info.name = m.kind == "state" ? "state" : m.block + "." + m.port;
+      if (names_used.count(info.name)) info.name = m.pipeline + "." + info.name;
+      names_used.insert(info.name);
+      info.topic = m.topic;
+      info.kind = m.kind;
+      info.names = m.names;
+      info.units = m.units;
+      info.rate_hz = m.rate_hz;
+      info.pipeline_rate_hz = m.pipeline_rate_hz;
+      info.decimation = m.decimation;
+      auto id = rec.add_series(info);
+      if (!id) {
+        std::fprintf(stderr, "lode: %s\n", id.error().c_str());
+        continue;
+      }
+      const int series = *id;
+      auto sub = client->subscribe(m, [&, series](const dds::SignalMeta&, const dds::Sample& s) {
+        std::lock_guard lock(queue_mutex);
+        rows.push_back({series, s});
+      });
+      if (!sub) {
+        std::fprintf(stderr, "lode: %s\n", sub.error().c_str());
+        continue;
+      }
+      series_of_topic[m.topic] = series;
+      subs.push_back(std::move(*sub));
+      std::fprintf(stderr, "lode record: %s -> %s:/signals/%s (%g Hz)\n", m.topic.c_str(), path.c_str(),
+                   info.name.c_str(), m.rate_hz);
+      if (!pipelines_followed.count(m.pipeline)) {
+        pipelines_followed.insert(m.pipeline);
+        watch.follow(m.pipeline);
+        rec.set_attribute("pipeline", m.pipeline);
+        auto ev = client->subscribe_events(m.pipeline, [&](const dds::EventSample& e) {
+          std::lock_guard lock(queue_mutex);
+          event_rows.push_back({e});
+        });
+        if (ev) subs.push_back(std::move(*ev));
+      }
+      any = true;
+    }
+    return any;
+  };
+  bool found = follow_new_topics(wait_option(args, 10.0));
+  if (found) {  // metadata arrives topic by topic: pick up the rest before the run starts
+    std::this_thread::sleep_for(milliseconds(500));
+    follow_new_topics(milliseconds(0));
+  }
+  if (!found && series_of_topic.empty()) {
+    std::fprintf(stderr, "lode: nothing to record: no matching lodestone topic appeared (see `lode topics`)\n");
+    return kExitFault;
+  }
+  auto last_scan = Clock::now();
+  auto last_flush = Clock::now();
+  std::string why;
+  auto drain = [&] {
+    std::deque<Row> r;
+    std::deque<EventRow> e;
+    {
+      std::lock_guard lock(queue_mutex);
+      r.swap(rows);
+      e.swap(event_rows);
+    }
+    for (const auto& row : r)
+      rec.append(row.series, row.sample.cycle, row.sample.stamp_ns, row.sample.captured_ns, row.sample.values.data());
+    for (const auto& ev : e) {
+      rec.add_event(ev.event.cycle, ev.event.stamp_ns, ev.event.kind, ev.event.text);
+      if (ev.event.kind == "stop") watch.pipeline_stopped(ev.event.pipeline);
+    }
+  };
+  while ((why = watch.reason()).empty()) {
+    std::this_thread::sleep_for(milliseconds(20));
+    drain();
+    if (Clock::now() - last_scan > milliseconds(500)) {
+      follow_new_topics(milliseconds(0));
+      last_scan = Clock::now();
+    }
+    if (Clock::now() - last_flush > std::chrono::seconds(1)) {
+      if (auto st = rec.flush(); !st) std::fprintf(stderr, "lode: %s\n", st.message().c_str());
+      last_flush = Clock::now();
+    }
+  }
+  subs.clear();
+  drain();
+  int rc = kExitOk;
+  for (const auto& [topic, series] : series_of_topic) {
+    std::fprintf(stderr, "lode record: %-44s %llu samples, %llu missing\n", topic.c_str(),
+                 static_cast<unsigned long long>(rec.samples(series)), static_cast<unsigned long long>(rec.gaps(series)));
+    if (rec.gaps(series) > 0) rc = kExitFault;  // never silent
+  }
+  if (auto st = rec.close(); !st) {
+    std::fprintf(stderr, "lode: %s\n", st.message().c_str());
+    return kExitFault;
+  }
+  std::fprintf(stderr, "lode record: wrote %s (%s)\n", path.c_str(), why.c_str());
+  return rc;
+}
+
+/// Ask the running pipeline to record every output on its own host (record_start/stop).
+int record_remotely(const Args& args) {
+  return send_command(args, "record", "", [&](const std::string&) -> std::optional<ControlRequest> {
+    ControlRequest r;
+    r.kind = args.has("--remote-start") ? "record_start" : "record_stop";
+    r.name = args.option("--remote-start");
+    return r;
+  });
+}
+
+int record(const Args& args) {
+  if (args.has("--remote-start") || args.has_flag("--remote-stop")) return record_remotely(args);
+  return record_topics(args);
+}
+
+}  // namespace
+
+Command record_command() {
+  return {"record",
+          "record live topics and events to HDF5 (stops on Ctrl-C, --duration, or when the pipelines stop); or ask a "
+          "running pipeline to record on its own host",
+          [](Declare& d) {
+            d.positional("FILE", "the HDF5 file to write", 0, 1);
+            d.text("--topics", "A,B", "only these topics");
+            d.number("--duration", "S", "stop after S seconds", 0, 1e9);
+            d.text("--remote-start", "FILE", "ask the running pipeline to record every output into FILE on its host");
+            d.flag("--remote-stop", "ask the running pipeline to stop recording");
+            d.flag("--quiet", "no progress");
+            d.command_route_options();
+            d.dds_options();
+          },
+          record};
+}
+
+}  // namespace lode::cli

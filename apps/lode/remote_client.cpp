@@ -1,0 +1,203 @@
+#include "remote_client.hpp"
+
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+#include <thread>
+
+#include "analysis.hpp"
+#include "local_control.hpp"
+
+namespace lode::cli {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+/// Participant options: environment first, then the command line.
+dds::ParticipantOptions participant_options(const Args& args, const std::string& role) {
+  char host[256] = "host";
+  gethostname(host, sizeof host - 1);
+  auto o = dds::options_from_environment("lode-" + role + "-" + std::to_string(getpid()) + "@" + host);
+  if (args.has("--name")) o.name = args.option("--name");
+  if (args.has("--domain")) {
+    o.domain = static_cast<int>(args.integer("--domain", 0));
+  }
+  if (args.has("--transport")) {
+    const auto t = args.option("--transport");
+    if (t == "loopback") o.transport.kind = TransportSpec::Kind::loopback;
+    else if (t == "shm") o.transport.kind = TransportSpec::Kind::shm;
+    else if (t == "udp_loopback") o.transport.kind = TransportSpec::Kind::udp_loopback;
+    else if (t == "network") o.transport.kind = TransportSpec::Kind::network;
+  }
+  if (args.has("--peers")) o.transport.initial_peers = split_list(args.option("--peers"));
+  if (args.has("--interfaces")) o.transport.interfaces = split_list(args.option("--interfaces"));
+  return o;
+}
+
+/// The pipeline a command goes to: --pipeline, "pipeline/..." in the target, or the only
+/// one publishing.
+std::optional<std::string> target_pipeline(const Args& args, dds::Client& client, std::string& target) {
+  if (args.has("--pipeline")) return args.option("--pipeline");
+  const auto slash = target.find('/');
+  if (slash != std::string::npos) {
+    std::string p = target.substr(0, slash);
+    target = target.substr(slash + 1);
+    return p;
+  }
+  // Discovery is gradual: the first pipeline heard of is not the only one live until no other
+  // has appeared for a while. Take the set once this client has listened for 2.5 s (every
+  // lodestone participant announces itself each second, so each live pipeline has had two
+  // chances to be heard) and the set has held still for 2 s (a loaded host can take over a
+  // second to process an announcement). A command never goes to the one that answered first.
+  const auto listening_since = Clock::now();
+  auto pipelines = client.pipelines(wait_option(args, 3.0));
+  for (auto settled = Clock::now();
+       !pipelines.empty() && (Clock::now() - settled < std::chrono::seconds(2) ||
+                              Clock::now() - listening_since < std::chrono::milliseconds(2500));) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    auto now_live = client.pipelines(std::chrono::milliseconds(0));
+    if (now_live != pipelines) {
+      pipelines = std::move(now_live);
+      settled = Clock::now();
+    }
+  }
+  if (pipelines.size() == 1) return pipelines[0];
+  if (pipelines.empty())
+    std::fprintf(stderr, "lode: no pipeline is publishing on this domain (give --pipeline NAME, check --domain/--transport)\n");
+  else {
+    std::fprintf(stderr, "lode: several pipelines are live; give --pipeline NAME (or NAME/BLOCK...):");
+    for (const auto& p : pipelines) std::fprintf(stderr, " %s", p.c_str());
+    std::fprintf(stderr, "\n");
+  }
+  return std::nullopt;
+}
+
+/// The same text whichever way the reply came (local socket or DDS).
+int print_reply(const ControlRequest& request, const ControlReply& reply) {
+  if (!reply.value.empty() && request.kind == "list") std::printf("%s", reply.value.c_str());
+  std::printf("%s: %s\n", reply.ok ? "ok" : "error", reply.message.c_str());
+  return reply.ok ? kExitOk : kExitFault;
+}
+
+milliseconds reply_timeout(const Args& args) {
+  return milliseconds(std::llround(args.number("--timeout", 5.0) * 1e3));
+}
+
+std::uint64_t new_request_id() { return static_cast<std::uint64_t>(Clock::now().time_since_epoch().count()); }
+
+int send(const Args& args, dds::Client& client, const std::string& pipeline, ControlRequest request) {
+  request.id = new_request_id();
+  auto reply = client.command(pipeline, request, reply_timeout(args));
+  if (!reply) {
+    std::fprintf(stderr, "lode: %s\n", reply.error().c_str());
+    return kExitFault;
+  }
+  return print_reply(request, *reply);
+}
+
+}  // namespace
+
+std::vector<std::string> split_list(const std::string& text) {
+  std::vector<std::string> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ','))
+    if (!item.empty()) out.push_back(item);
+  return out;
+}
+
+std::unique_ptr<dds::Client> make_client(const Args& args, const std::string& role) {
+  auto client = dds::Client::create(participant_options(args, role));
+  if (!client) {
+    std::fprintf(stderr, "lode: %s\n", client.error().c_str());
+    return nullptr;
+  }
+  return std::move(*client);
+}
+
+milliseconds wait_option(const Args& args, double fallback_s) {
+  return milliseconds(std::llround(args.number("--wait", fallback_s) * 1e3));
+}
+
+std::string unit_suffix(const std::string& unit) { return unit.empty() || unit == "1" ? "" : "[" + unit + "]"; }
+
+std::string format_scaled(double v, const std::string& unit) {
+  auto [scale, shown] = analysis::display_scale(unit, v);
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%+12.4f %-6s", v * scale, shown.c_str());
+  return buf;
+}
+
+int send_command(const Args& args, const std::string& role, std::string target,
+             const std::function<std::optional<ControlRequest>(const std::string&)>& make) {
+  const bool force_local = args.has_flag("--local");
+  const bool force_dds = args.has_flag("--dds");
+  if (force_local && force_dds) {
+    std::fprintf(stderr, "lode: --local and --dds exclude each other\n");
+    return kExitConfig;
+  }
+  std::optional<std::string> pipeline;
+  if (args.has("--pipeline")) {
+    pipeline = args.option("--pipeline");
+  } else if (const auto slash = target.find('/'); slash != std::string::npos) {
+    pipeline = target.substr(0, slash);
+    target = target.substr(slash + 1);
+  }
+  if (pipeline && pipeline->empty()) {
+    std::fprintf(stderr, "lode: empty pipeline name\n");
+    return kExitConfig;
+  }
+  auto request = make(target);
+  if (!request) return kExitConfig;
+
+  std::optional<std::string> socket;  // set: go local
+  if (!force_dds) {
+    if (pipeline) {
+      const std::string path = local_control_socket(*pipeline);
+      // --local: even a dead or missing socket, so the error says what is wrong with it.
+      if (force_local || probe_local_socket(path)) socket = path;
+    } else {
+      const auto live = live_local_pipelines();
+      if (live.size() == 1) {
+        socket = live[0].path;
+      } else if (live.size() > 1) {
+        std::fprintf(stderr, "lode: several pipelines run on this host; give --pipeline NAME (or NAME/...), or --dds for a remote one:");
+        for (const auto& p : live) std::fprintf(stderr, " %s (pid %d)", p.pipeline.c_str(), static_cast<int>(p.pid));
+        std::fprintf(stderr, "\n");
+        return kExitConfig;  // refuse to guess
+      } else if (force_local) {
+        std::fprintf(stderr, "lode: no pipeline runs on this host with a local command socket (looked in %s)\n",
+                     local_control_dir().c_str());
+        return kExitFault;
+      }
+    }
+  }
+  if (socket) {
+    request->id = new_request_id();
+    if (request->kind == "record_start" && !request->name.empty() && request->name[0] != '/') {
+      // Same host: a relative file means relative to the caller, not to the runner's cwd.
+      char cwd[4096];
+      if (getcwd(cwd, sizeof cwd)) request->name = std::string(cwd) + "/" + request->name;
+    }
+    char host[256] = "host";
+    gethostname(host, sizeof host - 1);
+    request->client = "lode-" + role + "-" + std::to_string(getpid()) + "@" + host;
+    auto reply = local_send(*socket, *request, reply_timeout(args));
+    if (!reply) {
+      std::fprintf(stderr, "lode: %s\n", reply.error().c_str());
+      return kExitFault;
+    }
+    return print_reply(*request, *reply);
+  }
+  auto client = make_client(args, role);
+  if (!client) return kExitConfig;
+  if (!pipeline) pipeline = target_pipeline(args, *client, target);
+  // None live, or several and none named: a command must never go to a guessed pipeline.
+  if (!pipeline) return kExitConfig;
+  return send(args, *client, *pipeline, *request);
+}
+
+}  // namespace lode::cli

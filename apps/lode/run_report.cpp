@@ -1,0 +1,121 @@
+#include "run_report.hpp"
+
+#include <cstdio>
+#include <string>
+
+#include "lode/rt_log.hpp"
+
+namespace lode::cli {
+namespace {
+
+Json timing_json(const RunFacts& f) {
+  const Pipeline& p = f.pipeline;
+  const RunResult& r = f.result;
+  const bool simulated = f.simulated;
+  const double sim_seconds = static_cast<double>(f.scheduler.stats().cycles.load()) / p.rate_hz();
+  Json j = Json::object();
+  const auto& st = f.scheduler.stats();
+  j["clock"] = simulated ? "sim" : "real";
+  j["cycles"] = st.cycles.load();
+  j["rate_hz"] = p.rate_hz();
+  j["wall_s"] = r.wall_s;
+  j["scheduled_s"] = sim_seconds;  // time covered by the cycle grid
+  if (simulated) {
+    j["speed_vs_realtime"] = r.wall_s > 0 ? sim_seconds / r.wall_s : 0.0;
+  } else {
+    j["executed_cycles"] = st.executed.load();
+    j["achieved_rate_hz"] = sim_seconds > 0 ? static_cast<double>(st.executed.load()) / sim_seconds : 0.0;
+    j["wake_latency"] = st.wake_latency.summary_us();
+    j["cycle_time"] = st.cycle_time.summary_us();
+  }
+  j["overruns"] = st.overruns.load();
+  j["missed_periods"] = st.missed_periods.load();
+  Json blocks = Json::object();
+  for (const auto& op : p.ops()) blocks[op.label] = op.exec_time->summary_us();
+  j["block_exec_time"] = std::move(blocks);
+  return j;
+}
+
+}  // namespace
+
+Json finish_run_summary(const RunFacts& f) {
+  Json summary = Json::object();
+  summary["pipeline"] = f.pipeline.name();
+  summary["config"] = f.config;
+  summary["result"] = f.result.faulted ? "fault" : f.result.stopped_by_request ? "stopped" : "completed";
+  if (f.result.faulted) summary["fault"] = f.result.fault;
+  const Json figures = f.analysis.finish();
+  for (const auto& [k, v] : figures.members()) summary[k] = v;
+  summary["timing"] = timing_json(f);
+  summary["recording"] = Json::object();
+  summary["recording"]["samples"] = f.analysis.samples();
+  summary["recording"]["dropped"] = f.analysis.dropped();
+  summary["rt_log_dropped"] = rt_log_ring().dropped();
+  const Json service_summary = f.services.summary();
+  for (const auto& [k, v] : service_summary.members()) summary[k] = v;
+  summary["warnings"] = Json::array();
+  for (const auto& w : f.result.warnings) summary["warnings"].push(w);
+  summary["events"] = f.events.to_json();
+  // The summary keeps the first and the latest events; how many fell between is said, not hidden.
+  summary["events_posted"] = f.events.posted();
+  summary["events_dropped"] = f.events.dropped();
+  summary["events_suppressed"] = f.events.suppressed();  // refused commands beyond 10 a second
+  return summary;
+}
+
+void print_run_summary(const Json& summary, const RunFacts& f) {
+  const auto& st = f.scheduler.stats();
+  // Timing, human-readable.
+  const auto& tj = *summary.find("timing");
+  if (!f.simulated) {
+    const auto& wl = *tj.find("wake_latency");
+    std::printf("  timing: %llu cycles run at %.1f Hz achieved; wake-up latency p50 %.1f us, p99 %.1f us, "
+                "p99.9 %.1f us, max %.1f us; overruns %llu, missed periods %llu\n",
+                static_cast<unsigned long long>(st.executed.load()), tj.find("achieved_rate_hz")->as_number(),
+                wl.find("p50_us")->as_number(), wl.find("p99_us")->as_number(),
+                wl.find("p999_us")->as_number(), wl.find("max_us")->as_number(),
+                static_cast<unsigned long long>(st.overruns.load()),
+                static_cast<unsigned long long>(st.missed_periods.load()));
+  } else {
+    std::printf("  timing: %llu cycles simulated in %.3f s wall (%.0fx real time)\n",
+                static_cast<unsigned long long>(st.cycles.load()), f.result.wall_s,
+                tj.find("speed_vs_realtime")->as_number());
+  }
+  std::printf("  step cost per block (p50 / p99 / max, us):");
+  for (const auto& op : f.pipeline.ops())
+    std::printf("  %s %.2f/%.2f/%.1f", op.label.c_str(), static_cast<double>(op.exec_time->percentile(0.5)) / 1e3,
+                static_cast<double>(op.exec_time->percentile(0.99)) / 1e3,
+                static_cast<double>(op.exec_time->max()) / 1e3);
+  std::printf("\n");
+  if (const auto* t = summary.find("telemetry"))
+    std::printf("  telemetry: domain %lld, %llu samples handed over, %llu dropped by the RT side (rings full), "
+                "%llu published\n",
+                static_cast<long long>(t->find("domain")->as_number()),
+                static_cast<unsigned long long>(t->find("samples_offered")->as_number()),
+                static_cast<unsigned long long>(t->find("ring_dropped")->as_number()),
+                static_cast<unsigned long long>(t->find("published") ? t->find("published")->as_number() : 0));
+  if (const auto* h = summary.find("hot_swap"); h && h->find("swaps")->as_number() > 0)
+    std::printf("  hot swap: %llu swaps, RT cost per exchange p50 %.0f ns, max %.0f ns; overruns in a swap cycle "
+                "(or the next) %llu\n",
+                static_cast<unsigned long long>(h->find("swaps")->as_number()),
+                h->find("rt_cost_p50_ns") ? h->find("rt_cost_p50_ns")->as_number() : 0.0,
+                h->find("rt_cost_max_ns") ? h->find("rt_cost_max_ns")->as_number() : 0.0,
+                static_cast<unsigned long long>(h->find("overruns_at_swap_cycles")->as_number()));
+  if (f.analysis.dropped() > 0)
+    std::printf("  WARNING: %llu recorded samples dropped (consumer too slow)\n",
+                static_cast<unsigned long long>(f.analysis.dropped()));
+  if (const auto* recs = summary.find("recordings")) {
+    for (const auto& r : recs->elements()) {
+      const auto* error = r.find("error");
+      std::printf("  recording: %s: %llu cycles%s%s\n", r.find("file")->as_string().c_str(),
+                  static_cast<unsigned long long>(r.find("cycles")->as_number()),
+                  error ? (", " + std::to_string(static_cast<unsigned long long>(r.find("lost")->as_number())) +
+                           " lost; FAILED: " + error->as_string()).c_str()
+                        : "",
+                  !error && r.find("dropped")->as_number() > 0 ? ", some dropped (see the summary)" : "");
+    }
+  }
+  if (f.result.faulted) std::printf("  FAULT: %s (outputs driven safe)\n", f.result.fault.c_str());
+}
+
+}  // namespace lode::cli

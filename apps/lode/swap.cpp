@@ -1,0 +1,60 @@
+// lode swap [PIPELINE/]BLOCK PLUGIN | --promote SHADOW: exchange an estimator of a running
+// pipeline (the newcomer is configured and checked off the RT thread; the state is handed
+// over at one cycle boundary), or make a shadow the primary.
+#include <cstdio>
+
+#include "commands.hpp"
+#include "remote_client.hpp"
+
+namespace lode::cli {
+namespace {
+
+int swap(const Args& args) {
+  const bool promote = args.has("--promote");
+  if ((!promote && args.positional.size() != 2) || (promote && !args.positional.empty() && args.positional.size() != 1)) {
+    std::fprintf(stderr, "usage: lode swap [PIPELINE/]BLOCK PLUGIN [--params '{key: value, ...}'] [--shadow-cycles N] [--cold]\n"
+                         "       lode swap --promote [PIPELINE/]SHADOW\n"
+                         "       [--pipeline NAME] [--local | --dds] [--timeout S]\n");
+    return kExitConfig;
+  }
+  const std::string target = promote ? args.option("--promote") : args.positional[0];
+  // Swap options travel in the request's name field: "shadow_cycles=N;warm_start=false".
+  std::string swap_options;
+  if (args.has("--shadow-cycles")) swap_options = "shadow_cycles=" + std::to_string(args.integer("--shadow-cycles", 0));
+  if (args.has_flag("--cold")) swap_options += std::string(swap_options.empty() ? "" : ";") + "warm_start=false";
+  return send_command(args, "swap", target, [&](const std::string& t) -> std::optional<ControlRequest> {
+    ControlRequest r;
+    r.kind = "swap";
+    if (promote) {
+      r.name = t;  // the shadow to promote
+      r.block = args.positional.empty() ? "" : args.positional[0];
+      r.plugin = "";
+      r.value = "promote";
+    } else {
+      r.block = t;
+      r.plugin = args.positional[1];
+      r.value = args.option("--params");
+      r.name = swap_options;
+    }
+    return r;
+  });
+}
+
+}  // namespace
+
+Command swap_command() {
+  return {"swap",
+          "hot-swap an estimator of a running pipeline (state handed over at a cycle boundary) or promote a shadow",
+          [](Declare& d) {
+            d.positional("ARGS", "[PIPELINE/]BLOCK PLUGIN: the block and the plugin to swap in", 0, 2);
+            d.text("--params", "'{k: v}'", "the new block's parameters (YAML flow map)");
+            d.integer("--shadow-cycles", "N", "run the newcomer as a shadow for N cycles first", 0, 100000000);
+            d.flag("--cold", "no state handover");
+            d.text("--promote", "SHADOW", "promote a shadow to the running estimator");
+            d.command_route_options();
+            d.dds_options();
+          },
+          swap};
+}
+
+}  // namespace lode::cli
