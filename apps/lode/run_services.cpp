@@ -17,7 +17,7 @@
 #include "lode/hot_swap.hpp"
 #include "lode/plugin.hpp"
 #include "lode/dds/bridge.hpp"
-#include "lode/record/hdf5_recorder.hpp"
+#include "run_recording.hpp"
 #include "lode/rt_log.hpp"
 #include "lode/telemetry.hpp"
 
@@ -45,21 +45,6 @@ class OutputDigest final : public CycleHook {
   std::uint64_t hash_ = 0xcbf29ce484222325ULL;
 };
 
-/// A SignalTap over every output that copies only while a recording is open.
-class RecordTap final : public CycleHook {
- public:
-  explicit RecordTap(std::vector<SignalRef> signals) : tap_(std::move(signals), 1 << 15) {}
-  void after_cycle(const Tick& tick) noexcept override {
-    if (open_.load(std::memory_order_acquire)) tap_.capture(tick.cycle, tick.time_ns);
-  }
-  SignalTap& tap() { return tap_; }
-  std::atomic<bool>& open() { return open_; }
-
- private:
-  SignalTap tap_;
-  std::atomic<bool> open_{false};
-};
-
 std::string hostname() {
   char host[256] = "host";
   gethostname(host, sizeof host - 1);
@@ -76,7 +61,6 @@ struct RunServices::Impl {
   RunServiceOptions options;
   TelemetrySpec spec;
   std::unique_ptr<OutputDigest> digest;
-  std::unique_ptr<RecordTap> record_tap;
   std::unique_ptr<TelemetryTap> telemetry_tap;
   std::unique_ptr<HotSwap> hot_swap;
   std::unique_ptr<ControlService> control;
@@ -85,227 +69,16 @@ struct RunServices::Impl {
   std::string local_socket;
   std::unique_ptr<dds::TelemetryBridge> bridge;
 
-  // The recorder is used by on_idle (main thread) and by the command thread: one mutex.
-  std::mutex record_mutex;
-  std::unique_ptr<record::Recorder> recorder;
-  std::string recording_path;
-  std::vector<int> series;  // per tapped signal
-  std::vector<double> rows;
-  std::size_t event_cursor = 0;
-  std::uint64_t recorded_cycles = 0;
-  std::uint64_t flushed_cycles = 0;  // recorded_cycles at the last flush that succeeded
-  std::chrono::steady_clock::time_point last_flush = std::chrono::steady_clock::now();
-  Json finished_recordings = Json::array();
+  std::unique_ptr<RunRecorder> recorder;
   std::uint64_t sim_waits = 0;
   std::uint64_t last_published = 0;
   std::chrono::steady_clock::time_point last_progress = std::chrono::steady_clock::now();
   bool stall_reported = false;
 
-  // What produced a recording, computed once before the run (describe() reads every
-  // block, which must not race with the RT thread once it runs).
-  std::vector<std::string> io_blocks;  // their outputs are the raw inputs replay plays back
-  std::string plugins_json;            // plugin name -> .so path
-  std::string blocks_json;             // block -> plugin name
-  std::atomic<bool> running{false};
-  bool recording_from_start = false;   // opened before the first cycle
-  std::optional<std::uint64_t> first_cycle;
-
-  void describe_sources() {
-    const Json d = pipeline->describe();
-    Json plugins = Json::object();
-    Json blocks = Json::object();
-    if (const Json* bj = d.find("blocks")) {
-      for (const auto& [name, b] : bj->members()) {
-        const Json* plugin = b.find("plugin");
-        const Json* file = b.find("plugin_file");
-        const Json* kind = b.find("kind");
-        if (!plugin) continue;
-        blocks[name] = plugin->as_string();
-        if (file) plugins[plugin->as_string()] = file->as_string();
-        if (kind && kind->as_string() == to_string(PluginKind::io)) io_blocks.push_back(name);
-      }
-    }
-    plugins_json = plugins.dump(-1);
-    blocks_json = blocks.dump(-1);
-  }
-
-  Status open_recording(const std::string& path) {
-    if (recorder) return Status::error("already recording to " + recording_path + " (record_stop first)");
-    auto r = record::Recorder::create(path, "lode run");
-    if (!r) return Status::error(r.error());
-    recorder = std::move(*r);
-    recorder->set_attribute("pipeline", pipeline->name());
-    recorder->set_attribute("config_file", pipeline->source_file());
-    recorder->set_attribute("config", pipeline->source_text());
-    recorder->set_attribute("host", hostname());
-    recorder->set_attribute("rate_hz", pipeline->rate_hz());
-    // The exact resolved configuration is the YAML text above plus the plugin files.
-    recorder->set_attribute("lode_plugins", plugins_json);
-    recorder->set_attribute("lode_blocks", blocks_json);
-    series.clear();
-    for (const auto& s : record_tap->tap().signals()) {
-      record::SeriesInfo info;
-      info.name = s.name();
-      const bool raw = std::find(io_blocks.begin(), io_blocks.end(), s.block) != io_blocks.end();
-      info.kind = raw ? "raw" : "signal";
-      for (const auto& e : *s.elements) {
-        info.names.push_back(e.name);
-        info.units.push_back(e.unit);
-      }
-      info.rate_hz = pipeline->rate_hz();
-      info.pipeline_rate_hz = pipeline->rate_hz();
-      auto id = recorder->add_series(info);
-      if (!id) {
-        recorder.reset();
-        return Status::error(id.error());
-      }
-      series.push_back(*id);
-    }
-    // Stale records from an earlier recording are dropped before the gate opens.
-    rows.clear();
-    record_tap->tap().drain(rows);
-    rows.clear();
-    recording_path = path;
-    recorded_cycles = 0;
-    flushed_cycles = 0;
-    last_flush = std::chrono::steady_clock::now();
-    first_cycle.reset();
-    recording_from_start = !running.load();
-    event_cursor = 0;
-    record_tap->open().store(true, std::memory_order_release);
-    return {};
-  }
-
-  /// With record_mutex held.
-  void drain_recording() {
-    if (!recorder) return;
-    rows.clear();
-    record_tap->tap().drain(rows);
-    const auto& tap = record_tap->tap();
-    const std::size_t stride = tap.stride();
-    for (std::size_t k = 0; k + stride <= rows.size(); k += stride) {
-      const auto cycle = static_cast<std::uint64_t>(rows[k]);
-      const auto stamp = static_cast<std::int64_t>(std::llround(rows[k + 1] * 1e9));
-      if (!first_cycle) first_cycle = cycle;
-      for (std::size_t i = 0; i < series.size(); ++i)
-        recorder->append(series[i], cycle, stamp, 0, rows.data() + k + tap.column(i));
-      ++recorded_cycles;
-    }
-    for (const auto& e : events->since(event_cursor)) recorder->add_event(e.cycle, e.time_ns, e.kind, e.text);
-  }
-
-  /// With record_mutex held. Writes what was drained to the file at most every
-  /// record.flush_interval_s of wall time (always when `force`), so that a crash loses at most
-  /// that much; the first write error ends the recording (recording_failed()).
-  void flush_recording(bool force) {
-    if (!recorder) return;
-    const auto now = std::chrono::steady_clock::now();
-    if (!force && now - last_flush < std::chrono::duration<double>(pipeline->record_settings().flush_interval_s))
-      return;
-    last_flush = now;
-    if (auto st = recorder->flush(); !st) {
-      recording_failed(st.message());
-      return;
-    }
-    flushed_cycles = recorded_cycles;
-  }
-
-  /// With record_mutex held. A recording that cannot be written (disk full, I/O error) stops
-  /// here, cleanly: the tap closes, the file is closed as far as HDF5 can, the event and the
-  /// summary say what the file holds and what was lost, and with record.on_error: stop the run
-  /// faults (outputs safe).
-  void recording_failed(const std::string& why) {
-    record_tap->open().store(false, std::memory_order_release);
-    const bool stop_run = pipeline->record_settings().stop_on_error;
-    const std::uint64_t lost = recorded_cycles - flushed_cycles;
-    const Status closed = recorder->close();
-    std::string text = "recording " + recording_path + " failed: " + why + "; recording stopped. The file keeps " +
-                       std::to_string(flushed_cycles) + " cycles (up to its last flush); " + std::to_string(lost) +
-                       " cycles recorded after that are lost" +
-                       (closed ? std::string() : " (closing it failed too: " + closed.message() + ")") +
-                       (stop_run ? "; record.on_error: stop ends the run" : "; the run goes on (record.on_error: continue)");
-    events->post(stats->last_time_ns.load(), stats->cycles.load(), stop_run ? "fault" : "warning", text);
-    Json j = Json::object();
-    j["file"] = recording_path;
-    j["cycles"] = flushed_cycles;
-    j["dropped"] = record_tap->tap().dropped();
-    j["lost"] = lost;
-    j["error"] = why;
-    j["complete"] = false;
-    finished_recordings.push(std::move(j));
-    recorder.reset();
-    if (stop_run) scheduler->request_fault("recording: " + why + " (record.on_error: stop)");
-  }
-
-  Status close_recording() {
-    if (!recorder) return Status::error("not recording");
-    record_tap->open().store(false, std::memory_order_release);
-    drain_recording();
-    const auto dropped = record_tap->tap().dropped();
-    recorder->set_attribute("dropped_cycles", static_cast<double>(dropped));
-    recorder->set_attribute("cycles", static_cast<double>(recorded_cycles));
-    recorder->set_attribute("first_cycle", first_cycle ? static_cast<double>(*first_cycle) : 0.0);
-    // The digest covers every cycle the pipeline ran: it describes this file only when the
-    // recording saw all of them (opened before the first cycle, closed after the last, none
-    // dropped). Otherwise say why there is none rather than claim a wrong one.
-    const bool whole_run = recording_from_start && !running.load() && dropped == 0;
-    if (whole_run) {
-      recorder->set_attribute("output_digest", digest_text());
-    } else {
-      recorder->set_attribute("recording_partial",
-                              !recording_from_start ? "recording started mid-run (first cycle " +
-                                                          std::to_string(first_cycle.value_or(0)) +
-                                                          "): no output digest"
-                              : running.load()      ? std::string("recording stopped mid-run: no output digest")
-                                                    : "cycles dropped by the recorder: no output digest");
-    }
-    auto st = recorder->close();
-    Json j = Json::object();
-    j["file"] = recording_path;
-    j["cycles"] = st ? recorded_cycles : flushed_cycles;
-    j["dropped"] = record_tap->tap().dropped();
-    j["lost"] = st ? std::uint64_t{0} : recorded_cycles - flushed_cycles;
-    if (!st) j["error"] = st.message();
-    j["complete"] = st.is_ok() && record_tap->tap().dropped() == 0;
-    finished_recordings.push(std::move(j));
-    recorder.reset();
-    return st;
-  }
-
   [[nodiscard]] std::string digest_text() const {
     char buf[32];
     std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(digest->value()));
     return buf;
-  }
-
-  ControlReply handle_record(const ControlRequest& r) {
-    ControlReply reply;
-    reply.id = r.id;
-    std::lock_guard lock(record_mutex);
-    if (r.kind == "record_start") {
-      if (r.name.empty()) {
-        reply.message = "record_start: give the file to write on the RT host (lode record --remote-start FILE)";
-        return reply;
-      }
-      if (auto st = open_recording(r.name); !st) {
-        reply.message = "record_start: " + st.message();
-        return reply;
-      }
-      reply.ok = true;
-      reply.message = "recording every output of '" + pipeline->name() + "' to " + r.name;
-      events->post(stats->last_time_ns.load(), stats->cycles.load(), "record", reply.message);
-    } else {
-      const std::string path = recording_path;
-      const auto cycles = recorded_cycles;
-      if (auto st = close_recording(); !st) {
-        reply.message = "record_stop: " + st.message();
-        return reply;
-      }
-      reply.ok = true;
-      reply.message = "closed " + path + " (" + std::to_string(cycles) + " cycles)";
-      events->post(stats->last_time_ns.load(), stats->cycles.load(), "record", reply.message);
-    }
-    return reply;
   }
 };
 
@@ -325,7 +98,6 @@ Expected<std::unique_ptr<RunServices>> RunServices::start(Pipeline& pipeline, Sc
   im.stats = &scheduler.stats();
   im.options = options;
   im.spec = pipeline.telemetry();
-  im.describe_sources();
   if (options.domain) im.spec.domain = *options.domain;
   const bool telemetry = im.spec.enabled && options.telemetry;
 
@@ -339,12 +111,11 @@ Expected<std::unique_ptr<RunServices>> RunServices::start(Pipeline& pipeline, Sc
   im.control->set_swap_handler([hs = im.hot_swap.get()](const ControlRequest& r) { return hs->handle(r); });
   im.digest = std::make_unique<OutputDigest>(pipeline.signals());
   scheduler.add_hook(im.digest.get());
-  im.record_tap = std::make_unique<RecordTap>(pipeline.signals());
-  scheduler.add_hook(im.record_tap.get());
-  im.control->set_record_handler([&im](const ControlRequest& r) { return im.handle_record(r); });
+  im.recorder = std::make_unique<RunRecorder>(pipeline, scheduler, events, [&im] { return im.digest_text(); });
+  scheduler.add_hook(&im.recorder->hook());
+  im.control->set_record_handler([&im](const ControlRequest& r) { return im.recorder->handle(r); });
   if (!options.record_path.empty()) {
-    std::lock_guard lock(im.record_mutex);
-    if (auto st = im.open_recording(options.record_path); !st) return st;
+    if (auto st = im.recorder->open(options.record_path); !st) return st;
   }
   if (options.local_control) {
     auto server = LocalControlServer::start(*im.control, pipeline.name());
@@ -384,7 +155,7 @@ bool RunServices::wait_for_subscribers() {
 }
 
 void RunServices::set_running(bool running) {
-  impl_->running.store(running);
+  impl_->recorder->set_running(running);
   impl_->hot_swap->set_running(running);
   impl_->control->set_running(running);
 }
@@ -392,11 +163,7 @@ void RunServices::set_running(bool running) {
 void RunServices::on_idle() {
   Impl& im = *impl_;
   im.hot_swap->poll_events();  // health-monitor trips and fallbacks become events (recorded, published)
-  {
-    std::lock_guard lock(im.record_mutex);
-    im.drain_recording();
-    im.flush_recording(false);
-  }
+  im.recorder->on_idle();
   if (im.telemetry_tap && im.bridge) {
     // Watchdog: samples waiting but nothing published for 3 s means the publisher thread
     // is stuck (inside Fast DDS); say so once. The RT side keeps running and counts drops.
@@ -435,11 +202,8 @@ void RunServices::finish() {
     im.local_server.reset();
   }
   if (im.hot_swap) im.hot_swap->poll_events();
-  {
-    std::lock_guard lock(im.record_mutex);
-    if (im.recorder) {
-      if (auto st = im.close_recording(); !st) std::fprintf(stderr, "lode: recording: %s\n", st.message().c_str());
-    }
+  if (im.recorder) {
+    if (auto st = im.recorder->close(); !st) std::fprintf(stderr, "lode: recording: %s\n", st.message().c_str());
   }
   if (im.bridge) {
     // Publish the rest and close the participant, but never wait for ever: Fast DDS 2.9.1
@@ -473,7 +237,7 @@ void RunServices::finish() {
 
 std::string RunServices::output_digest() const { return impl_->digest_text(); }
 
-const std::vector<std::string>& RunServices::io_blocks() const { return impl_->io_blocks; }
+const std::vector<std::string>& RunServices::io_blocks() const { return impl_->recorder->io_blocks(); }
 
 Expected<RunResult> execute_run(Pipeline& pipeline, Scheduler& scheduler, EventLog& events, RunServices& services,
                                 std::uint64_t cycles, const std::string& start_text,
@@ -514,7 +278,7 @@ Json RunServices::summary() const {
     }
     j["telemetry"] = std::move(t);
   }
-  j["recordings"] = im.finished_recordings;
+  j["recordings"] = im.recorder ? im.recorder->finished() : Json::array();
   if (!im.local_socket.empty()) {
     const LocalControlStats ls = im.local_server ? im.local_server->stats() : im.local_stats;
     Json l = Json::object();

@@ -1,0 +1,229 @@
+#include "run_recording.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "lode/plugin.hpp"
+
+namespace lode::cli {
+
+RunRecorder::RunRecorder(const Pipeline& pipeline, Scheduler& scheduler, EventLog& events,
+                         std::function<std::string()> digest)
+    : pipeline_(pipeline), scheduler_(scheduler), events_(events), stats_(scheduler.stats()),
+      digest_text_(std::move(digest)), tap_(pipeline.signals()) {
+  char host[256] = "host";
+  gethostname(host, sizeof host - 1);
+  hostname_ = host;
+  const Json d = pipeline_.describe();
+  Json plugins = Json::object();
+  Json blocks = Json::object();
+  if (const Json* bj = d.find("blocks")) {
+    for (const auto& [name, b] : bj->members()) {
+      const Json* plugin = b.find("plugin");
+      const Json* file = b.find("plugin_file");
+      const Json* kind = b.find("kind");
+      if (!plugin) continue;
+      blocks[name] = plugin->as_string();
+      if (file) plugins[plugin->as_string()] = file->as_string();
+      if (kind && kind->as_string() == to_string(PluginKind::io)) io_blocks_.push_back(name);
+    }
+  }
+  plugins_json_ = plugins.dump(-1);
+  blocks_json_ = blocks.dump(-1);
+}
+
+Status RunRecorder::open(const std::string& path) {
+  std::lock_guard lock(mutex_);
+  return open_locked(path);
+}
+
+void RunRecorder::on_idle() {
+  std::lock_guard lock(mutex_);
+  drain_locked();
+  flush_locked(false);
+}
+
+Status RunRecorder::close() {
+  std::lock_guard lock(mutex_);
+  return recorder_ ? close_locked() : Status{};
+}
+
+Json RunRecorder::finished() const {
+  std::lock_guard lock(mutex_);
+  return finished_;
+}
+
+Status RunRecorder::open_locked(const std::string& path) {
+  if (recorder_) return Status::error("already recording to " + path_ + " (record_stop first)");
+  auto r = record::Recorder::create(path, "lode run");
+  if (!r) return Status::error(r.error());
+  recorder_ = std::move(*r);
+  recorder_->set_attribute("pipeline", pipeline_.name());
+  recorder_->set_attribute("config_file", pipeline_.source_file());
+  recorder_->set_attribute("config", pipeline_.source_text());
+  recorder_->set_attribute("host", hostname_);
+  recorder_->set_attribute("rate_hz", pipeline_.rate_hz());
+  // The exact resolved configuration is the YAML text above plus the plugin files.
+  recorder_->set_attribute("lode_plugins", plugins_json_);
+  recorder_->set_attribute("lode_blocks", blocks_json_);
+  series_.clear();
+  for (const auto& s : tap_.tap().signals()) {
+    record::SeriesInfo info;
+    info.name = s.name();
+    const bool raw = std::find(io_blocks_.begin(), io_blocks_.end(), s.block) != io_blocks_.end();
+    info.kind = raw ? "raw" : "signal";
+    for (const auto& e : *s.elements) {
+      info.names.push_back(e.name);
+      info.units.push_back(e.unit);
+    }
+    info.rate_hz = pipeline_.rate_hz();
+    info.pipeline_rate_hz = pipeline_.rate_hz();
+    auto id = recorder_->add_series(info);
+    if (!id) {
+      recorder_.reset();
+      return Status::error(id.error());
+    }
+    series_.push_back(*id);
+  }
+  // Stale records from an earlier recording are dropped before the gate opens.
+  rows_.clear();
+  tap_.tap().drain(rows_);
+  rows_.clear();
+  path_ = path;
+  recorded_cycles_ = 0;
+  flushed_cycles_ = 0;
+  last_flush_ = std::chrono::steady_clock::now();
+  first_cycle_.reset();
+  from_start_ = !running_.load();
+  event_cursor_ = 0;
+  tap_.open().store(true, std::memory_order_release);
+  return {};
+}
+
+void RunRecorder::drain_locked() {
+  if (!recorder_) return;
+  rows_.clear();
+  tap_.tap().drain(rows_);
+  const auto& tap = tap_.tap();
+  const std::size_t stride = tap.stride();
+  for (std::size_t k = 0; k + stride <= rows_.size(); k += stride) {
+    const auto cycle = static_cast<std::uint64_t>(rows_[k]);
+    const auto stamp = static_cast<std::int64_t>(std::llround(rows_[k + 1] * 1e9));
+    if (!first_cycle_) first_cycle_ = cycle;
+    for (std::size_t i = 0; i < series_.size(); ++i)
+      recorder_->append(series_[i], cycle, stamp, 0, rows_.data() + k + tap.column(i));
+    ++recorded_cycles_;
+  }
+  for (const auto& e : events_.since(event_cursor_)) recorder_->add_event(e.cycle, e.time_ns, e.kind, e.text);
+}
+
+// Writes what was drained to the file at most every record.flush_interval_s of wall time
+// (always when `force`), so that a crash loses at most that much; the first write error ends
+// the recording (failed_locked()).
+void RunRecorder::flush_locked(bool force) {
+  if (!recorder_) return;
+  const auto now = std::chrono::steady_clock::now();
+  if (!force && now - last_flush_ < std::chrono::duration<double>(pipeline_.record_settings().flush_interval_s))
+    return;
+  last_flush_ = now;
+  if (auto st = recorder_->flush(); !st) {
+    failed_locked(st.message());
+    return;
+  }
+  flushed_cycles_ = recorded_cycles_;
+}
+
+// A recording that cannot be written (disk full, I/O error) stops here, cleanly: the tap
+// closes, the file is closed as far as HDF5 can, the event and the summary say what the file
+// holds and what was lost, and with record.on_error: stop the run faults (outputs safe).
+void RunRecorder::failed_locked(const std::string& why) {
+  tap_.open().store(false, std::memory_order_release);
+  const bool stop_run = pipeline_.record_settings().stop_on_error;
+  const std::uint64_t lost = recorded_cycles_ - flushed_cycles_;
+  const Status closed = recorder_->close();
+  std::string text = "recording " + path_ + " failed: " + why + "; recording stopped. The file keeps " +
+                     std::to_string(flushed_cycles_) + " cycles (up to its last flush); " + std::to_string(lost) +
+                     " cycles recorded after that are lost" +
+                     (closed ? std::string() : " (closing it failed too: " + closed.message() + ")") +
+                     (stop_run ? "; record.on_error: stop ends the run" : "; the run goes on (record.on_error: continue)");
+  events_.post(stats_.last_time_ns.load(), stats_.cycles.load(), stop_run ? "fault" : "warning", text);
+  Json j = Json::object();
+  j["file"] = path_;
+  j["cycles"] = flushed_cycles_;
+  j["dropped"] = tap_.tap().dropped();
+  j["lost"] = lost;
+  j["error"] = why;
+  j["complete"] = false;
+  finished_.push(std::move(j));
+  recorder_.reset();
+  if (stop_run) scheduler_.request_fault("recording: " + why + " (record.on_error: stop)");
+}
+
+Status RunRecorder::close_locked() {
+  if (!recorder_) return Status::error("not recording");
+  tap_.open().store(false, std::memory_order_release);
+  drain_locked();
+  const auto dropped = tap_.tap().dropped();
+  recorder_->set_attribute("dropped_cycles", static_cast<double>(dropped));
+  recorder_->set_attribute("cycles", static_cast<double>(recorded_cycles_));
+  recorder_->set_attribute("first_cycle", first_cycle_ ? static_cast<double>(*first_cycle_) : 0.0);
+  // The digest covers every cycle the pipeline ran: it describes this file only when the
+  // recording saw all of them (opened before the first cycle, closed after the last, none
+  // dropped). Otherwise say why there is none rather than claim a wrong one.
+  const bool whole_run = from_start_ && !running_.load() && dropped == 0;
+  if (whole_run) {
+    recorder_->set_attribute("output_digest", digest_text_());
+  } else {
+    recorder_->set_attribute("recording_partial",
+                            !from_start_ ? "recording started mid-run (first cycle " +
+                                                        std::to_string(first_cycle_.value_or(0)) +
+                                                        "): no output digest"
+                            : running_.load()      ? std::string("recording stopped mid-run: no output digest")
+                                                  : "cycles dropped by the recorder_: no output digest");
+  }
+  auto st = recorder_->close();
+  Json j = Json::object();
+  j["file"] = path_;
+  j["cycles"] = st ? recorded_cycles_ : flushed_cycles_;
+  j["dropped"] = tap_.tap().dropped();
+  j["lost"] = st ? std::uint64_t{0} : recorded_cycles_ - flushed_cycles_;
+  if (!st) j["error"] = st.message();
+  j["complete"] = st.is_ok() && tap_.tap().dropped() == 0;
+  finished_.push(std::move(j));
+  recorder_.reset();
+  return st;
+}
+
+ControlReply RunRecorder::handle(const ControlRequest& r) {
+  ControlReply reply;
+  reply.id = r.id;
+  std::lock_guard lock(mutex_);
+  if (r.kind == "record_start") {
+    if (r.name.empty()) {
+      reply.message = "record_start: give the file to write on the RT host (lode record --remote-start FILE)";
+      return reply;
+    }
+    if (auto st = open_locked(r.name); !st) {
+      reply.message = "record_start: " + st.message();
+      return reply;
+    }
+    reply.ok = true;
+    reply.message = "recording every output of '" + pipeline_.name() + "' to " + r.name;
+    events_.post(stats_.last_time_ns.load(), stats_.cycles.load(), "record", reply.message);
+  } else {
+    const std::string path = path_;
+    const auto cycles = recorded_cycles_;
+    if (auto st = close_locked(); !st) {
+      reply.message = "record_stop: " + st.message();
+      return reply;
+    }
+    reply.ok = true;
+    reply.message = "closed " + path + " (" + std::to_string(cycles) + " cycles)";
+    events_.post(stats_.last_time_ns.load(), stats_.cycles.load(), "record", reply.message);
+  }
+  return reply;
+}
+
+}  // namespace lode::cli

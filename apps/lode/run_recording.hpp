@@ -1,0 +1,98 @@
+// The recording of `lode run --record FILE` and of the record_start/record_stop commands:
+// every output of every cycle, copied on the RT thread into a tap only while a file is open,
+// written to HDF5 off the RT thread at most record.flush_interval_s apart, with the exact
+// configuration, the plugin files and (for a whole run) the output digest.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lode/control.hpp"
+#include "lode/event_log.hpp"
+#include "lode/json.hpp"
+#include "lode/pipeline.hpp"
+#include "lode/record/hdf5_recorder.hpp"
+#include "lode/scheduler.hpp"
+#include "lode/telemetry.hpp"
+
+namespace lode::cli {
+
+class RunRecorder {
+ public:
+  /// Reads what produced the run (plugin files, io blocks) now, before the RT thread runs:
+  /// describe() reads every block. `digest` gives the output digest when a whole run closes.
+  RunRecorder(const Pipeline& pipeline, Scheduler& scheduler, EventLog& events, std::function<std::string()> digest);
+
+  /// The hook to add to the scheduler (RT side: copies the outputs while a file is open).
+  [[nodiscard]] CycleHook& hook() { return tap_; }
+  /// Opens FILE and starts recording at the next cycle.
+  Status open(const std::string& path);
+  void set_running(bool running) { running_.store(running); }
+  /// Off the RT thread, between cycles: drain the tap, flush when the interval has passed.
+  void on_idle();
+  /// Closes the file if one is open (end of run).
+  Status close();
+  /// record_start FILE / record_stop from the command service.
+  ControlReply handle(const ControlRequest& request);
+  /// Every recording closed so far: file, cycles, dropped, lost, error, complete.
+  [[nodiscard]] Json finished() const;
+  /// Blocks whose plugin is of kind io (their outputs are recorded as kind "raw").
+  [[nodiscard]] const std::vector<std::string>& io_blocks() const { return io_blocks_; }
+
+ private:
+  /// A SignalTap over every output that copies only while a recording is open.
+  class Tap final : public CycleHook {
+   public:
+    explicit Tap(std::vector<SignalRef> signals) : tap_(std::move(signals), 1 << 15) {}
+    void after_cycle(const Tick& tick) noexcept override {
+      if (open_.load(std::memory_order_acquire)) tap_.capture(tick.cycle, tick.time_ns);
+    }
+    SignalTap& tap() { return tap_; }
+    std::atomic<bool>& open() { return open_; }
+
+   private:
+    SignalTap tap_;
+    std::atomic<bool> open_{false};
+  };
+
+  // Each with mutex_ held.
+  Status open_locked(const std::string& path);
+  void drain_locked();
+  void flush_locked(bool force);
+  void failed_locked(const std::string& why);
+  Status close_locked();
+
+  const Pipeline& pipeline_;
+  Scheduler& scheduler_;
+  EventLog& events_;
+  const RunStats& stats_;
+  std::function<std::string()> digest_text_;
+  Tap tap_;
+  std::string hostname_;
+  std::vector<std::string> io_blocks_;  // their outputs are the raw inputs replay plays back
+  std::string plugins_json_;            // plugin name -> .so path
+  std::string blocks_json_;             // block -> plugin name
+  std::atomic<bool> running_{false};
+
+  // The recorder is used between cycles (main thread) and by the command thread: one mutex.
+  mutable std::mutex mutex_;
+  std::unique_ptr<record::Recorder> recorder_;
+  std::string path_;
+  std::vector<int> series_;  // per tapped signal
+  std::vector<double> rows_;
+  std::size_t event_cursor_ = 0;
+  std::uint64_t recorded_cycles_ = 0;
+  std::uint64_t flushed_cycles_ = 0;  // recorded_cycles_ at the last flush that succeeded
+  std::chrono::steady_clock::time_point last_flush_ = std::chrono::steady_clock::now();
+  Json finished_ = Json::array();
+  bool from_start_ = false;  // opened before the first cycle
+  std::optional<std::uint64_t> first_cycle_;
+};
+
+}  // namespace lode::cli
