@@ -230,13 +230,12 @@ bool Pipeline::Impl::parse_top(const YAML::Node& root) {
     return false;
   }
   std::set<std::string> allowed(std::begin(kTopLevelKeys), std::end(kTopLevelKeys));
+  std::string allowed_list;  // in the order a pipeline file usually has them
+  for (const char* k : kTopLevelKeys) allowed_list += (allowed_list.empty() ? "" : ", ") + std::string(k);
   for (const auto& kv : root) {
     const auto key = kv.first.as<std::string>();
     if (!allowed.count(key))
-      error(detail::location_of(kv.first, file), key,
-            "unknown top-level key '" + key +
-                "' (allowed: pipeline, rate_hz, duration_s, realtime, models, blocks, monitor, telemetry, health, record, "
-                "envelope)");
+      error(detail::location_of(kv.first, file), key, "unknown top-level key '" + key + "' (allowed: " + allowed_list + ")");
   }
   if (!root["pipeline"] || !root["pipeline"].IsScalar())
     error(detail::location_of(root, file), "pipeline", "missing pipeline name (pipeline: <name>)");
