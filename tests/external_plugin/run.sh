@@ -11,6 +11,15 @@ cmake --install "$BUILD" --prefix "$TMP/prefix" >/dev/null
 cmake -S "$HERE" -B "$TMP/build" -DCMAKE_PREFIX_PATH="$TMP/prefix" -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build "$TMP/build" >/dev/null
 test -f "$TMP/build/lode-filter.external_gain.so"
+# Its own test (TESTS): the BlockHarness from the installed SDK, registered with ctest.
+ctest --test-dir "$TMP/build" --output-on-failure >"$TMP/ctest.log" 2>&1 \
+  || { cat "$TMP/ctest.log"; echo "FAIL: the plugin's own test (TESTS) failed"; exit 1; }
+ctest --test-dir "$TMP/build" -N | grep -q "Total Tests: 1" || { echo "FAIL: the plugin's test is not registered"; exit 1; }
+# Installed into the same prefix, the installed lode finds it without LODE_PLUGIN_PATH.
+cmake --install "$TMP/build" --prefix "$TMP/prefix" >/dev/null
+LODE_PLUGIN_PATH= "$TMP/prefix/bin/lode" plugins filter.external_gain | grep -q "Out-of-tree example" \
+  || { echo "FAIL: the installed plugin is not found by the installed lode"; exit 1; }
+rm "$TMP"/prefix/lib/lodestone/plugins/lode-filter.external_gain.so
 export LODE_PLUGIN_PATH="$TMP/build"
 LODE="$TMP/prefix/bin/lode"
 # The installed man pages (one per command) and bash completion work.
