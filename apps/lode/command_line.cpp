@@ -196,11 +196,13 @@ std::string bash_completion(const std::vector<Command>& commands) {
       "    COMPREPLY=($(compgen -W \"" + names + " --help --version\" -- \"$cur\")); return\n"
       "  fi\n"
       "  case \"$cmd\" in\n";
-  for (const auto& [name, app] : tree->commands) {
+  for (std::size_t c = 0; c < tree->commands.size(); ++c) {
+    const auto& [name, app] = tree->commands[c];
     std::string options, choices, files;
     const auto visit = [&](const CLI::App* a) {
       for (const CLI::Option* o : a->get_options()) {
         for (const auto& n : o->get_lnames()) {
+          if ((options + " ").find(" --" + n + " ") != std::string::npos) continue;  // --help of a group
           options += " --" + n;
           // A choice's value name is its choices, "sim|real" (CLI11 appends ":{sim,real}").
           const std::string type = o->get_type_name().substr(0, o->get_type_name().find(':'));
@@ -227,6 +229,10 @@ std::string bash_completion(const std::vector<Command>& commands) {
            options + "\" -- \"$cur\")); return; fi\n";
     if (!files.empty())
       out += "      COMPREPLY=($(compgen -f -X '!" + files + "' -- \"$cur\") $(compgen -d -- \"$cur\"))\n";
+    if (const std::string& words = commands[c].positional_words; !words.empty())
+      out += "      local lode=${COMP_WORDS[0]} npos=0 w\n"
+             "      for w in \"${COMP_WORDS[@]:2:COMP_CWORD-2}\"; do [[ $w == -* ]] || npos=$((npos + 1)); done\n"
+             "      COMPREPLY=($(compgen -W \"$(" + words + ")\" -- \"$cur\"))\n";
     out += "      ;;\n";
   }
   out += "  esac\n}\ncomplete -o filenames -F _lode lode\n";

@@ -57,6 +57,10 @@ struct Command {
   std::string description;
   std::function<void(Declare&)> declare;
   std::function<int(const Args&)> run;
+  /// For bash completion of a positional argument: a bash command printing the words it may
+  /// be (live names, asked where that is cheap). `$lode` is the program being completed and
+  /// `$npos` the number of positional arguments before the word.
+  std::string positional_words = {};
 };
 
 /// Parses argv against the command table, then runs the chosen command. Exit codes: 0, 1

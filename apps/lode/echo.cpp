@@ -167,7 +167,9 @@ Command echo_command() {
             d.number("--wait", "S", "how long to wait for the topic (default 5)", 0, 3600);
             d.dds_options();
           },
-          echo};
+          echo,
+          // Topic names need seconds of DDS discovery (lode topics): only the fixed ones.
+          "echo events timing state"};
 }
 
 }  // namespace lode::cli

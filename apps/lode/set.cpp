@@ -49,7 +49,9 @@ Command set_command() {
             d.command_route_options();
             d.dds_options();
           },
-          set};
+          set,
+          // The parameters of the pipeline running on this host, over its local socket (no DDS).
+          R"($lode set --list --local --timeout 1 2>/dev/null | awk '$1 ~ /[.]/ { print $1 }')"};
 }
 
 }  // namespace lode::cli

@@ -54,7 +54,9 @@ Command swap_command() {
             d.command_route_options();
             d.dds_options();
           },
-          swap};
+          swap,
+          // The second word is the plugin to swap in: the installed estimators.
+          R"([ "$npos" -eq 1 ] && $lode plugins 2>/dev/null | awk '/^estimator[.]/ { print $1 }')"};
 }
 
 }  // namespace lode::cli

@@ -3,8 +3,7 @@
 # the real clock serves $XDG_RUNTIME_DIR/lode/maglev6_hybrid.sock; `lode set` / `lode swap`
 # (separate processes) and raw clients (python) command it.
 #   Part A: tests/integration/local_control_server (ControlService + LocalControlServer).
-#   Part B: `lode run --no-telemetry`, once run_services.cpp starts the server and main.cpp
-#           takes --no-local-control (skipped, and said so, until then).
+#   Part B: `lode run` itself (--no-telemetry, with telemetry, --no-local-control).
 # usage: local_control_test.sh LODE SOURCE_DIR LOCAL_CONTROL_SERVER
 set -u
 LODE=$1
@@ -57,6 +56,13 @@ exercise() {
   [ "$(stat -c %a "$XDG_RUNTIME_DIR/lode")" = 700 ] && [ "$(stat -c %a "$SOCK")" = 600 ] \
     && echo "ok: $label: directory 0700, socket 0600" \
     || { echo "FAIL: $label: modes $(stat -c %a "$XDG_RUNTIME_DIR/lode") $(stat -c %a "$SOCK")"; fail=1; }
+
+  # Bash completion of `lode set` offers the live parameters of this runner (local socket).
+  local completion
+  completion=$(bash -c 'source <("$1" --bash-completion); COMP_WORDS=("$1" set observer.); COMP_CWORD=2; _lode
+                        echo "${COMPREPLY[*]}"' _ "$LODE")
+  [ "$completion" = "observer.d" ] && echo "ok: $label: completion of 'lode set observer.' is observer.d" \
+    || { echo "FAIL: $label: completion of 'lode set observer.' gave '$completion'"; fail=1; }
 
   "$LODE" set --list >"$TMP/list.out" 2>&1; check "$label: set --list (the one local pipeline)" 0 $?
   contains "$label: list names observer.d with its range" "$TMP/list.out" '^observer\.d \[0, 1\]'
@@ -167,9 +173,10 @@ for _ in $(seq 1 600); do "$LODE" set --local observer.d >/dev/null 2>&1 && brea
 contains "restart: replaced" "$TMP/restart.log" "replaced a stale socket"
 kill -INT "$RUNNER_PID"; wait "$RUNNER_PID"; RUNNER_PID=
 
-# --- Part B: `lode run` itself, once RunServices starts the server --------------------------
-# The binary under test says whether it has the hookup (its usage lists --no-local-control).
-if "$LODE" 2>&1 | grep -q -- "--no-local-control"; then
+# --- Part B: `lode run` itself ----------------------------------------------------------------
+# (This part once ran only when `lode`'s usage listed --no-local-control; since the usage
+# became per command it was skipped without anyone noticing. It always runs now.)
+{
   exercise lode_run "$LODE" run "$CONFIG" --clock real --duration 20 --no-telemetry --quiet --summary-json "$TMP/run.json"
   contains "lode run: summary counts the local requests" "$TMP/run.json" '"local_control": \{'
   contains "lode run: summary names the socket" "$TMP/run.json" "\"socket\": \"$SOCK\""
@@ -192,9 +199,7 @@ if "$LODE" 2>&1 | grep -q -- "--no-local-control"; then
   sleep 1
   if [ -e "$SOCK" ]; then echo "FAIL: --no-local-control still made $SOCK"; fail=1; else echo "ok: --no-local-control makes no socket"; fi
   wait "$RUNNER_PID"; check "--no-local-control run completes" 0 $?; RUNNER_PID=
-else
-  echo "SKIP: part B (lode run): this lode has no --no-local-control, i.e. RunServices does not start the server yet"
-fi
+}
 
 if [ $fail -ne 0 ]; then echo "local_control_test: FAILED"; exit 1; fi
 echo "local_control_test: all passed"
