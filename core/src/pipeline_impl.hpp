@@ -167,6 +167,20 @@ struct Family {
   std::vector<Range> ranges;
 };
 
+/// Keys of a block that the pipeline reads (the rest are the plugin's parameters).
+inline const std::vector<std::string> kPipelineBlockKeys = {"plugin", "inputs", "shadow_of", "shadow_decimation"};
+/// Outputs the pipeline adds to every shadow role.
+inline constexpr const char* kDisagreementPort = "disagreement";
+inline constexpr const char* kNisPort = "nis";
+
+/// "[x m, y m]" for messages.
+inline std::string element_list(const Elements& e) {
+  std::string s = "[";
+  for (std::size_t i = 0; i < e.size(); ++i)
+    s += (i ? ", " : "") + e[i].name + (e[i].unit.empty() ? "" : " " + e[i].unit);
+  return s + "]";
+}
+
 /// Offset in the arena of an output that load-time validation guarantees to exist.
 inline std::size_t output_offset(const BlockEntry& b, const std::string& port) {
   const DeclaredOutput* o = b.output(port);
