@@ -127,10 +127,7 @@ Status Pipeline::activate() {
   }
   for (auto& f : impl_->families) {
     f.fallback_used = false;
-    f.nis_count = 0;
-    f.nis_sum = 0.0;
-    f.nis_pos = 0;
-    f.over_budget = 0;
+    f.restart_health();
   }
   impl_->active = true;
   return {};

@@ -178,6 +178,22 @@ Json Pipeline::describe() const {
     blocks[role->name] = std::move(bj);
   }
   j["blocks"] = std::move(blocks);
+  // What the health monitor of each primary checks, with its derived NIS threshold.
+  Json health = Json::object();
+  for (const auto& f : im.families) {
+    if (!f.health.enabled) continue;
+    const HealthSpec& h = f.health;
+    Json hj = Json::object();
+    hj["non_finite"] = h.non_finite;
+    hj["covariance_check_every"] = static_cast<std::uint64_t>(h.covariance_every);
+    hj["nis_window"] = static_cast<std::uint64_t>(h.nis_window);
+    hj["nis_threshold"] = h.nis_window > 0 ? Json(h.nis_threshold) : Json();
+    hj["step_budget_us"] = static_cast<double>(h.step_budget_ns) * 1e-3;
+    hj["budget_cycles"] = static_cast<std::uint64_t>(h.budget_cycles);
+    hj["fallback"] = h.fallback_slot >= 0 ? Json(f.roles[static_cast<std::size_t>(h.fallback_slot + 1)]->name) : Json();
+    health[f.primary->name] = std::move(hj);
+  }
+  j["health"] = std::move(health);
   return j;
 }
 

@@ -165,6 +165,16 @@ struct Family {
     std::size_t size = 0;
   };
   std::vector<Range> ranges;
+
+  /// A new primary starts its own health statistics: after a fallback, a promotion, a swap
+  /// into the primary role and at activation (or its first slow step would trip on the
+  /// previous one's count). RT-safe.
+  void restart_health() noexcept {
+    nis_count = 0;
+    nis_sum = 0.0;
+    nis_pos = 0;
+    over_budget = 0;
+  }
 };
 
 /// Keys of a block that the pipeline reads (the rest are the plugin's parameters).
