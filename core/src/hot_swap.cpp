@@ -174,29 +174,16 @@ Expected<HotSwap::PreparedPtr> HotSwap::prepare(const SwapRequest& request) {
   record->node = node;
   record->where = {"swap request", 1, 1};
   record->candidate = true;
-  if (given["inputs"]) {
-    if (!given["inputs"].IsMap()) return fail("`inputs` must be a map input: block.port");
-    for (const auto& in : given["inputs"]) {
-      InputWiring w;
-      w.input = in.first.as<std::string>();
-      w.source = in.second.as<std::string>();
-      const auto dot = w.source.find('.');
-      if (dot == std::string::npos) return fail("inputs." + w.input + ": '" + w.source + "' is not block.port");
-      w.src_block = w.source.substr(0, dot);
-      w.src_port = w.source.substr(dot + 1);
-      record->wiring.push_back(std::move(w));
-    }
-  } else {
-    record->wiring = incumbent->wiring;
-  }
-
-  // Configure with the loader's own code path, collecting its diagnostics here.
+  // Its wiring and configuration go through the loader's own code, collecting its
+  // diagnostics here.
   Diagnostics diagnostics;
   Diagnostics* saved = im.diag;
   const std::string saved_file = im.file;
   im.diag = &diagnostics;
   im.file = "swap request";
-  im.configure_block(*record);
+  if (given["inputs"]) im.parse_wiring(given["inputs"], "params", *record);
+  else record->wiring = incumbent->wiring;
+  if (diagnostics.empty()) im.configure_block(*record);
   if (diagnostics.empty()) {
     // Inputs it does not declare are dropped; what it declares must be wired and match.
     std::vector<std::string> dropped;
@@ -235,24 +222,9 @@ Expected<HotSwap::PreparedPtr> HotSwap::prepare(const SwapRequest& request) {
                   " in the cycle (or is a shadow): it would read a stale value");
   }
   // It must provide every output of the role, same size and units.
-  for (const auto& o : role->outputs) {
-    if (o.synthetic) continue;
-    const DeclaredOutput* mine = record->output(o.name);
-    std::string problem;
-    if (!mine) problem = "has no output '" + o.name + "'";
-    else if (mine->elements.size() != o.elements.size())
-      problem = "output '" + o.name + "' has " + std::to_string(mine->elements.size()) + " elements, the role has " +
-                std::to_string(o.elements.size());
-    else
-      for (std::size_t i = 0; i < o.elements.size() && problem.empty(); ++i)
-        if (!units_compatible(mine->elements[i].unit, o.elements[i].unit) ||
-            !units_compatible(o.elements[i].unit, mine->elements[i].unit))
-          problem = "output '" + o.name + "." + mine->elements[i].name + "' is in '" + mine->elements[i].unit +
-                    "', the role's in '" + o.elements[i].unit + "'";
-    if (!problem.empty())
-      return fail(plugin + " cannot take the place of " + incumbent->plugin_name + ": it " + problem +
-                  " (a replacement must provide every output of the block, same size and units)");
-  }
+  if (const std::string problem = Pipeline::Impl::stand_in_problem(*record, *role); !problem.empty())
+    return fail(plugin + " cannot take the place of " + incumbent->plugin_name + ": it " + problem +
+                " (a replacement must provide every output of the block, same size and units)");
 
   // Storage, bindings, activation.
   im.prepare_record(*record, family);
@@ -636,7 +608,17 @@ SwapReport HotSwap::wait_and_finish(PreparedPtr prepared, std::chrono::milliseco
 
 SwapReport HotSwap::swap(const SwapRequest& request, std::chrono::milliseconds timeout) {
   std::lock_guard lock(mutex_);
-  auto prepared = prepare(request);
+  // Off the RT thread, on the command path: whatever a plugin or a parameter text throws
+  // while the newcomer is prepared is a refusal, never an exception out of the command
+  // thread (that would end the run).
+  Expected<PreparedPtr> prepared = Status::error("");
+  try {
+    prepared = prepare(request);
+  } catch (const std::exception& ex) {
+    prepared = Status::error(std::string("preparing the swap failed: ") + ex.what());
+  } catch (...) {
+    prepared = Status::error("preparing the swap failed (unknown exception)");
+  }
   if (!prepared) {
     SwapReport r;
     r.block = request.block;

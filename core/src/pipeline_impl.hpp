@@ -258,12 +258,19 @@ struct Pipeline::Impl {
   void parse_envelope(const YAML::Node& node);
   void parse_models(const YAML::Node& models_node);
   void parse_blocks(const YAML::Node& blocks_node);
+  /// A block's `inputs:` map into its wiring (the loader's and a hot swap's); problems are
+  /// reported at `path`.inputs.NAME.
+  void parse_wiring(const YAML::Node& inputs, const std::string& path, BlockEntry& e);
   std::vector<BlockEntry*> order_blocks();
   void configure_block(BlockEntry& entry);
   void check_documented(const LoadedPlugin& plugin, const Params& params, const std::string& path);
   void resolve_inputs();
   void resolve_inputs_of(BlockEntry& entry);
   void check_shadows(const std::vector<BlockEntry*>& order);
+  /// Why `candidate` cannot take the place of `role` (promotion, fallback, swap): it must
+  /// provide every output of the role with the same number of elements and compatible units.
+  /// Empty when it can. Synthetic outputs (a shadow's statistics) are the pipeline's own.
+  static std::string stand_in_problem(const BlockEntry& candidate, const BlockEntry& role);
   void allocate_and_bind();
   void build_ops(const std::vector<BlockEntry*>& order);
   void build_families();

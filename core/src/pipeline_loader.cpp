@@ -248,32 +248,7 @@ void Pipeline::Impl::parse_blocks(const YAML::Node& blocks_node) {
       else
         e->shadow_decimation = static_cast<std::uint32_t>(n);
     }
-    if (const YAML::Node inputs = kv.second["inputs"]) {
-      if (!inputs.IsMap()) {
-        error(detail::location_of(inputs, file), path + ".inputs",
-              "expected a map `input_name: block.port`");
-      } else {
-        for (const auto& in : inputs) {
-          InputWiring w;
-          w.input = in.first.as<std::string>();
-          w.where = detail::location_of(in.second, file);
-          if (!in.second.IsScalar()) {
-            error(w.where, path + ".inputs." + w.input, "expected `block.port`");
-            continue;
-          }
-          w.source = in.second.Scalar();
-          const auto dot = w.source.find('.');
-          if (dot == std::string::npos || dot == 0 || dot + 1 == w.source.size()) {
-            error(w.where, path + ".inputs." + w.input,
-                  "'" + w.source + "' is not a `block.port` reference");
-            continue;
-          }
-          w.src_block = w.source.substr(0, dot);
-          w.src_port = w.source.substr(dot + 1);
-          e->wiring.push_back(std::move(w));
-        }
-      }
-    }
+    if (const YAML::Node inputs = kv.second["inputs"]) parse_wiring(inputs, path, *e);
     blocks.push_back(std::move(e));
   }
   // Sources must exist (ports are checked once everything is configured).
@@ -306,6 +281,31 @@ void Pipeline::Impl::parse_blocks(const YAML::Node& blocks_node) {
     } else if (b->wiring.empty()) {
       b->wiring = primary->wiring;
     }
+  }
+}
+
+void Pipeline::Impl::parse_wiring(const YAML::Node& inputs, const std::string& path, BlockEntry& e) {
+  if (!inputs.IsMap()) {
+    error(detail::location_of(inputs, file), path + ".inputs", "expected a map `input_name: block.port`");
+    return;
+  }
+  for (const auto& in : inputs) {
+    InputWiring w;
+    w.input = in.first.IsScalar() ? in.first.Scalar() : std::string("?");
+    w.where = detail::location_of(in.second, file);
+    if (!in.second.IsScalar()) {
+      error(w.where, path + ".inputs." + w.input, "expected `block.port`");
+      continue;
+    }
+    w.source = in.second.Scalar();
+    const auto dot = w.source.find('.');
+    if (dot == std::string::npos || dot == 0 || dot + 1 == w.source.size()) {
+      error(w.where, path + ".inputs." + w.input, "'" + w.source + "' is not a `block.port` reference");
+      continue;
+    }
+    w.src_block = w.source.substr(0, dot);
+    w.src_port = w.source.substr(dot + 1);
+    e.wiring.push_back(std::move(w));
   }
 }
 

@@ -30,6 +30,23 @@ namespace lode {
 
 using namespace pipeline_detail;
 
+std::string Pipeline::Impl::stand_in_problem(const BlockEntry& candidate, const BlockEntry& role) {
+  for (const auto& o : role.outputs) {
+    if (o.synthetic) continue;
+    const DeclaredOutput* mine = candidate.output(o.name);
+    if (!mine) return "has no output '" + o.name + "'";
+    if (mine->elements.size() != o.elements.size())
+      return "has " + std::to_string(mine->elements.size()) + " elements in output '" + o.name + "', " + role.name +
+             "." + o.name + " has " + std::to_string(o.elements.size());
+    for (std::size_t i = 0; i < o.elements.size(); ++i)
+      if (!units_compatible(mine->elements[i].unit, o.elements[i].unit) ||
+          !units_compatible(o.elements[i].unit, mine->elements[i].unit))
+        return "has output '" + o.name + "." + mine->elements[i].name + "' in '" + mine->elements[i].unit + "', " +
+               role.name + "." + o.name + "." + o.elements[i].name + " in '" + o.elements[i].unit + "'";
+  }
+  return {};
+}
+
 void Pipeline::Impl::check_shadows(const std::vector<BlockEntry*>& order) {
   for (auto* b : order) {
     if (b->shadow_of.empty() || !b->block) continue;
@@ -38,27 +55,11 @@ void Pipeline::Impl::check_shadows(const std::vector<BlockEntry*>& order) {
     if (!primary || !primary->block) continue;  // reported already
     // A shadow must be able to take its primary's place (promotion, fallback): every output
     // of the primary, with the same elements.
-    for (const auto& po : primary->outputs) {
-      const DeclaredOutput* so = b->output(po.name);
-      std::string problem;
-      if (!so) {
-        problem = "it has no output '" + po.name + "'";
-      } else if (so->elements.size() != po.elements.size()) {
-        problem = "its output '" + po.name + "' has " + std::to_string(so->elements.size()) + " elements, " +
-                  b->shadow_of + "." + po.name + " has " + std::to_string(po.elements.size());
-      } else {
-        for (std::size_t i = 0; i < po.elements.size() && problem.empty(); ++i)
-          if (so->elements[i].unit != po.elements[i].unit)
-            problem = "its output '" + po.name + "." + so->elements[i].name + "' is in '" + so->elements[i].unit +
-                      "', " + b->shadow_of + "." + po.name + "." + po.elements[i].name + " in '" +
-                      po.elements[i].unit + "'";
-      }
-      if (!problem.empty())
-        error(b->shadow_where, path,
-              "shadow '" + b->name + "' (" + b->plugin_name + ") cannot stand in for '" + b->shadow_of + "' (" +
-                  primary->plugin_name + "): " + problem +
-                  " (a shadow must provide every output of its primary, same size and units)");
-    }
+    if (const std::string problem = stand_in_problem(*b, *primary); !problem.empty())
+      error(b->shadow_where, path,
+            "shadow '" + b->name + "' (" + b->plugin_name + ") cannot stand in for '" + b->shadow_of + "' (" +
+                primary->plugin_name + "): it " + problem +
+                " (a shadow must provide every output of its primary, same size and units)");
     for (const auto& o : b->outputs)
       if (o.name == kDisagreementPort || o.name == kNisPort)
         error(b->shadow_where, path, "plugin " + b->plugin_name + " declares an output '" + o.name +

@@ -308,6 +308,12 @@ TEST(HotSwap, RefusedPluginsLeaveTheIncumbentRunning) {
        "has no output"},                                                 // configures, cannot stand in
       {"estimator.hybrid_h2hinf", "{q: 1, r: 1, hinf_theta: 0, d: 2}", "d"},  // refuses its parameters
       {"estimator.kalman", "{q: [1, 2]", "not valid YAML"},
+      // Its wiring is read by the loader's own rules: a map or a half reference is refused
+      // with the loader's messages, not thrown or looked up as a block named ''.
+      {"estimator.kalman", "{q: [1.0e2, 1.0e2, 1.0e5], r: [2.2e-10, 2.2e-10, 9.6e-9], inputs: {measurement: {a: 1}}}",
+       "inputs.measurement: expected `block.port`"},
+      {"estimator.kalman", "{q: [1.0e2, 1.0e2, 1.0e5], r: [2.2e-10, 2.2e-10, 9.6e-9], inputs: {measurement: .pose}}",
+       "'.pose' is not a `block.port` reference"},
   };
   for (const auto& c : cases) {
     lode::SwapRequest req;
@@ -325,7 +331,9 @@ TEST(HotSwap, RefusedPluginsLeaveTheIncumbentRunning) {
   }
   std::size_t refused = 0;
   for (const auto& e : rig.events.snapshot()) refused += e.kind == "command_failed";
-  EXPECT_EQ(refused, cases.size());
+  // Refusals beyond 10 a second are counted, not posted (a flood must not fill the log).
+  EXPECT_EQ(refused + rig.events.suppressed(), cases.size());
+  EXPECT_EQ(refused, std::min<std::size_t>(cases.size(), 10));
   // io blocks are never swappable.
   lode::SwapRequest io;
   io.block = "stage";
@@ -514,6 +522,37 @@ TEST(HealthMonitor, ConfigurationErrorsAreLocated) {
     EXPECT_NE(diag.format().find(c.expect), std::string::npos) << diag.format();
     EXPECT_NE(diag.format().find("swap.yaml:"), std::string::npos) << diag.format();
   }
+}
+
+}  // namespace
+
+namespace {
+
+// A shadow stands in for its primary by the same rule a hot swap's newcomer does: every
+// output, same size, compatible units. "m/s^2" and "m/s2" are one unit; the loader once
+// compared spellings and refused such a shadow that a swap would have accepted.
+TEST(StandIn, ShadowAndSwapUseOneRuleForUnits) {
+  const std::string yaml = R"(pipeline: stand_in
+rate_hz: 1000
+blocks:
+  a: {plugin: source.step, names: [x], units: [m/s^2], steps: [{time_s: 0.01, value: [1.0]}]}
+  b: {plugin: source.step, names: [x], units: [m/s2], steps: [{time_s: 0.01, value: [1.0]}]}
+  c: {plugin: source.step, names: [x], units: [rad], steps: [{time_s: 0.01, value: [1.0]}]}
+  primary: {plugin: filter.biquad, type: lowpass, f_hz: 100, q: 0.7071, inputs: {in: a.out}}
+  same_unit: {plugin: filter.biquad, shadow_of: primary, type: lowpass, f_hz: 50, q: 0.7071, inputs: {in: b.out}}
+)";
+  lode::PluginRegistry registry;
+  lode::Diagnostics diagnostics;
+  auto p = lode::Pipeline::load_text(yaml, "stand_in.yaml", registry, diagnostics);
+  EXPECT_TRUE(p) << diagnostics.format();
+  // Another unit is still refused, with the rule's words.
+  lode::Diagnostics other;
+  auto q = lode::Pipeline::load_text(yaml + "  other_unit: {plugin: filter.biquad, shadow_of: primary, type: lowpass, "
+                                            "f_hz: 50, q: 0.7071, inputs: {in: c.out}}\n",
+                                     "stand_in.yaml", registry, other);
+  EXPECT_FALSE(q);
+  EXPECT_NE(other.format().find("cannot stand in for 'primary'"), std::string::npos) << other.format();
+  EXPECT_NE(other.format().find("in 'rad'"), std::string::npos) << other.format();
 }
 
 }  // namespace
