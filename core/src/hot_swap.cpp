@@ -441,10 +441,7 @@ void HotSwap::after_cycle(const Tick& tick) noexcept {
     f.fallback_used = false;  // the user chose: the fallback is armed again
     // The health statistics were the old primary's: the promoted block starts its own (as
     // after a fallback or a swap), or its first slow step would trip on the old one's.
-    f.nis_count = 0;
-    f.nis_sum = 0.0;
-    f.nis_pos = 0;
-    f.over_budget = 0;
+    f.restart_health();
     p.cycle = boundary.cycle;
     p.time_ns = boundary.time_ns;
     p.cost_ns += monotonic_ns() - t0;
@@ -483,10 +480,7 @@ void HotSwap::install(Prepared& p, const Tick& boundary, std::int64_t t0) noexce
   p.retired = im.install(f, p.role, *p.record);
   f.warming = nullptr;
   if (p.role == 0) {
-    f.nis_count = 0;
-    f.nis_sum = 0.0;
-    f.nis_pos = 0;
-    f.over_budget = 0;
+    f.restart_health();
   }
   p.cycle = boundary.cycle;
   p.time_ns = boundary.time_ns;

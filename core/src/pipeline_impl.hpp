@@ -165,7 +165,31 @@ struct Family {
     std::size_t size = 0;
   };
   std::vector<Range> ranges;
+
+  /// A new primary starts its own health statistics: after a fallback, a promotion, a swap
+  /// into the primary role and at activation (or its first slow step would trip on the
+  /// previous one's count). RT-safe.
+  void restart_health() noexcept {
+    nis_count = 0;
+    nis_sum = 0.0;
+    nis_pos = 0;
+    over_budget = 0;
+  }
 };
+
+/// Keys of a block that the pipeline reads (the rest are the plugin's parameters).
+inline const std::vector<std::string> kPipelineBlockKeys = {"plugin", "inputs", "shadow_of", "shadow_decimation"};
+/// Outputs the pipeline adds to every shadow role.
+inline constexpr const char* kDisagreementPort = "disagreement";
+inline constexpr const char* kNisPort = "nis";
+
+/// "[x m, y m]" for messages.
+inline std::string element_list(const Elements& e) {
+  std::string s = "[";
+  for (std::size_t i = 0; i < e.size(); ++i)
+    s += (i ? ", " : "") + e[i].name + (e[i].unit.empty() ? "" : " " + e[i].unit);
+  return s + "]";
+}
 
 /// Offset in the arena of an output that load-time validation guarantees to exist.
 inline std::size_t output_offset(const BlockEntry& b, const std::string& port) {

@@ -14,6 +14,7 @@
 // left in a reply writer's history by an earlier client of the same name never matches;
 // the reply handed back carries the caller's request.id.
 #include "lode/dds/client.hpp"
+#include "lode/clock.hpp"
 
 #include <time.h>
 #include <unistd.h>
@@ -47,12 +48,6 @@ namespace {
 namespace fdds = eprosima::fastdds::dds;
 using detail::Durability;
 using Clock = std::chrono::steady_clock;
-
-std::int64_t monotonic_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 /// Shared between a subscription and its listeners: closing waits for a running callback.
 struct Gate {

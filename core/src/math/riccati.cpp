@@ -36,6 +36,7 @@
 #include <string>
 
 #include "lode/math/riccati.hpp"
+#include "lode/text.hpp"
 
 namespace lode::math {
 
@@ -50,12 +51,6 @@ constexpr Eigen::Index kMaxKroneckerOrder = 24;
 constexpr double kRoundingResidual = 64.0 * std::numeric_limits<double>::epsilon();
 /// PBH test threshold: sigma_min([A - lambda I, B]) below this times ||[A B]|| = unreachable.
 constexpr double kUnreachable = 1e-13;
-
-std::string number_text(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%.6g", value);
-  return buffer;
-}
 
 double norm_1(const Matrix& M) { return M.size() == 0 ? 0.0 : M.cwiseAbs().colwise().sum().maxCoeff(); }
 

@@ -10,6 +10,7 @@
 
 #include "lode/plugin.hpp"
 #include "lode/units.hpp"
+#include "lode/text.hpp"
 
 namespace lode::plugins {
 
@@ -17,11 +18,7 @@ namespace discrete_tf {
 
 namespace {
 
-std::string number_text(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%.10g", value);
-  return buffer;
-}
+std::string number_text(double value) { return lode::number_text(value, 10); }
 
 /// Roots closer than this to s = 0 [rad/s] are treated as lying at the origin (integrators,
 /// differentiators): they map to z = 1 exactly and take part in the gain matching.
@@ -226,12 +223,6 @@ bool Section::step(double error, double& output) noexcept {
 namespace {
 
 using discrete_tf::Design;
-
-std::string number_text(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%g", value);
-  return buffer;
-}
 
 /// One axis map: {zeros_s, poles_s, gain, discretization, prewarp_hz} or {num_z, den_z}.
 Expected<Design> read_axis(Params& axis, double period_s) {

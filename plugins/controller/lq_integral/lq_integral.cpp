@@ -12,6 +12,7 @@
 #include "lode/math/discretize.hpp"
 #include "lode/plugin.hpp"
 #include "lode/units.hpp"
+#include "lode/text.hpp"
 
 namespace lode::plugins {
 
@@ -116,12 +117,6 @@ using lq_integral::kMaxModes;
 using lq_integral::kMaxPositions;
 using lq_integral::Mode;
 using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-
-std::string number_text(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%g", value);
-  return buffer;
-}
 
 std::string count_text(std::size_t value) { return std::to_string(value); }
 

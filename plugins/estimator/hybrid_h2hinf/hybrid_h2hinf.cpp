@@ -14,6 +14,7 @@
 #include "lode/math/riccati.hpp"
 #include "lode/plugin.hpp"
 #include "lode/units.hpp"
+#include "lode/text.hpp"
 
 namespace lode::plugins {
 
@@ -220,12 +221,6 @@ namespace {
 
 using hybrid::kMaxAxes;
 using hybrid::Vector3;
-
-std::string number_text(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%.6g", value);
-  return buffer;
-}
 
 /// A per-axis list that may also be written as one number for every axis.
 std::vector<double> per_axis(Params& params, std::string_view key, std::vector<double> values, std::size_t axes) {

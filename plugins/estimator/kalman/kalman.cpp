@@ -9,6 +9,7 @@
 
 #include "lode/plugin.hpp"
 #include "lode/units.hpp"
+#include "lode/text.hpp"
 
 namespace lode::plugins {
 
@@ -65,12 +66,6 @@ template SteadyState<3> steady_state<3>(const AxisModel<3>&, double, double);
 namespace {
 
 using kalman::kMaxAxes;
-
-std::string number_text(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%g", value);
-  return buffer;
-}
 
 /// A per-axis list that may also be written as one number for every axis.
 std::vector<double> per_axis(Params& params, std::string_view key, std::vector<double> values,

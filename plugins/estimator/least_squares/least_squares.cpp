@@ -7,16 +7,11 @@
 
 #include "lode/plugin.hpp"
 #include "lode/units.hpp"
+#include "lode/text.hpp"
 
 namespace lode::plugins {
 
 namespace {
-
-std::string number_text(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%g", value);
-  return buffer;
-}
 
 /// Smallest ratio of the Cholesky factor's diagonal entries squared (min / max) that still
 /// counts as a regular normal matrix: below it a direction of the pose is not observed.

@@ -39,6 +39,7 @@
 #include "lode/block.hpp"
 #include "lode/math/riccati.hpp"
 #include "lode/units.hpp"
+#include "lode/text.hpp"
 
 namespace lode::plugins::nonlinear {
 
@@ -59,12 +60,6 @@ enum class NoiseBasis {
   per_step,   ///< Q_k = q (a covariance per period)
   per_second  ///< Q_k = q dt (a white-noise intensity [unit^2/s], Euler discretisation)
 };
-
-inline std::string number_text(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%g", value);
-  return buffer;
-}
 
 inline std::string element_list(const Elements& elements) {
   std::string out;

@@ -3,6 +3,7 @@
 #include <string>
 
 #include "lode/plugin.hpp"
+#include "lode/text.hpp"
 
 namespace lode::plugins {
 
@@ -16,11 +17,11 @@ void UnscentedEstimator::read_filter_params(Params& params) {
 Status UnscentedEstimator::prepare_filter(Params& params) {
   const int n = static_cast<int>(n_);
   params.check(alpha_ > 0.0 && alpha_ <= 1.0, "alpha",
-               "the sigma-point spread alpha must be in (0, 1], got " + nonlinear::number_text(alpha_));
+               "the sigma-point spread alpha must be in (0, 1], got " + number_text(alpha_));
   params.check(beta_ >= 0.0, "beta", "beta must be >= 0 (2 is optimal for Gaussians), got " +
-                                         nonlinear::number_text(beta_));
+                                         number_text(beta_));
   params.check(n + kappa_ > 0.0, "kappa",
-               "L + kappa must be > 0 (L = " + std::to_string(n) + "), got kappa = " + nonlinear::number_text(kappa_));
+               "L + kappa must be > 0 (L = " + std::to_string(n) + "), got kappa = " + number_text(kappa_));
   if (!params.ok()) return Status::error("invalid parameters");
   weights_ = ukf::Weights::make(n, alpha_, beta_, kappa_);
   core_.configure(n, static_cast<int>(m_), weights_, ukf::Sums::about_centre, redraw_);

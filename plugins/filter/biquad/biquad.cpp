@@ -9,6 +9,7 @@
 
 #include "lode/math/discretize.hpp"
 #include "lode/plugin.hpp"
+#include "lode/text.hpp"
 
 namespace lode::plugins {
 
@@ -46,12 +47,6 @@ namespace {
 
 using biquad::Coefficients;
 using biquad::Type;
-
-std::string number_text(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%g", value);
-  return buffer;
-}
 
 std::vector<double> per_channel(Params& params, std::string_view key, std::vector<double> values, std::size_t n) {
   if (values.size() == 1 && n > 1) values.assign(n, values.front());

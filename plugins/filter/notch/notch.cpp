@@ -9,6 +9,7 @@
 
 #include "lode/math/discretize.hpp"
 #include "lode/plugin.hpp"
+#include "lode/text.hpp"
 
 namespace lode::plugins {
 
@@ -51,12 +52,6 @@ namespace {
 
 using notch::Coefficients;
 using notch::Form;
-
-std::string number_text(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%g", value);
-  return buffer;
-}
 
 /// One number for every filtered channel, or one per filtered channel.
 std::vector<double> per_channel(Params& params, std::string_view key, std::vector<double> values, std::size_t n) {

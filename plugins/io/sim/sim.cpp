@@ -11,16 +11,11 @@
 
 #include "lode/plugin.hpp"
 #include "lode/units.hpp"
+#include "lode/text.hpp"
 
 namespace lode::plugins {
 
 namespace {
-
-std::string number_text(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%g", value);
-  return buffer;
-}
 
 std::string name_list(const Elements& elements) {
   std::string out;

@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "lode/params.hpp"
+#include "lode/text.hpp"
 
 namespace lode::plugins::hall {
 
@@ -129,12 +130,6 @@ struct Conversion {
     return worst;
   }
 };
-
-inline std::string number_text(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%.6g", value);
-  return buffer;
-}
 
 /// The parameter keys both plugins use for the conversion (configure time):
 ///   coil_polynomial_v      eq. 15 in descending powers of the coil voltage [V/V^n]

@@ -18,6 +18,7 @@
 #include "lode/block.hpp"
 #include "lode/params.hpp"
 #include "lode/port.hpp"
+#include "lode/text.hpp"
 
 namespace lode::plugins::source {
 
@@ -28,12 +29,6 @@ struct SourceElements {
 
   [[nodiscard]] std::size_t size() const { return elements.size(); }
 };
-
-inline std::string number_text(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%g", value);
-  return buffer;
-}
 
 /// Reads `names` (required, unique, non-empty), `units` (required, same length) and
 /// `offset` (per element, default 0). Problems are recorded in `params` at their key.

@@ -5,6 +5,7 @@
 
 #include "../common/source_elements.hpp"
 #include "lode/plugin.hpp"
+#include "lode/text.hpp"
 
 namespace lode::plugins {
 
@@ -19,7 +20,7 @@ Status SineSource::configure(ConfigureContext& ctx) {
   start_ns_ = source::read_time_ns(params, "start_s", 0.0);
   for (std::size_t i = 0; i < frequency_hz_.size(); ++i) {
     if (frequency_hz_[i] < 0.0) {
-      params.fail("frequency_hz", "must be >= 0 Hz, got " + source::number_text(frequency_hz_[i]) +
+      params.fail("frequency_hz", "must be >= 0 Hz, got " + number_text(frequency_hz_[i]) +
                                       " for element " + std::to_string(i));
     }
   }
@@ -35,9 +36,9 @@ Status SineSource::configure(ConfigureContext& ctx) {
   for (std::size_t i = 0; i < frequency_hz_.size(); ++i) {
     if (frequency_hz_[i] > nyquist_hz) {
       params.fail("frequency_hz", "must not exceed the Nyquist frequency " +
-                                      source::number_text(nyquist_hz) + " Hz of this " +
-                                      source::number_text(ctx.rate_hz()) + " Hz block, got " +
-                                      source::number_text(frequency_hz_[i]));
+                                      number_text(nyquist_hz) + " Hz of this " +
+                                      number_text(ctx.rate_hz()) + " Hz block, got " +
+                                      number_text(frequency_hz_[i]));
     }
   }
 

@@ -5,6 +5,7 @@
 
 #include "../common/source_elements.hpp"
 #include "lode/plugin.hpp"
+#include "lode/text.hpp"
 
 namespace lode::plugins {
 
@@ -23,9 +24,9 @@ Status StepSource::configure(ConfigureContext& ctx) {
     const std::vector<double> value = source::read_per_element(step, "value", size_);
     if (!step_time_ns_.empty() && time_ns <= step_time_ns_.back()) {
       step.fail("time_s", "steps must be sorted by strictly increasing time_s; " +
-                              source::number_text(static_cast<double>(time_ns) * 1e-9) +
+                              number_text(static_cast<double>(time_ns) * 1e-9) +
                               " s does not come after " +
-                              source::number_text(static_cast<double>(step_time_ns_.back()) * 1e-9) +
+                              number_text(static_cast<double>(step_time_ns_.back()) * 1e-9) +
                               " s");
     }
     step_time_ns_.push_back(time_ns);

@@ -5,6 +5,7 @@
 
 #include "../common/source_elements.hpp"
 #include "lode/plugin.hpp"
+#include "lode/text.hpp"
 
 namespace lode::plugins {
 
@@ -20,7 +21,7 @@ Status ZigzagSource::configure(ConfigureContext& ctx) {
   tunables_.add({"amplitude", "", "", -1e300, 1e300, "peak of the triangle sweep above offset"});
   const double period_s = params.number("period_s");
   if (!(period_s > 0.0 && period_s <= source::kMaxTimeS)) {
-    params.fail("period_s", "must be within (0, 1e9] s, got " + source::number_text(period_s));
+    params.fail("period_s", "must be within (0, 1e9] s, got " + number_text(period_s));
   } else {
     period_ns_ = source::seconds_to_ns(period_s);
     if (period_ns_ < 2) params.fail("period_s", "must be at least 2 ns");

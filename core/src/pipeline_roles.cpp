@@ -1,0 +1,208 @@
+// Roles and instances: shadows of a primary, families, the bindings of an instance into a
+// role, and the exchanges hot swap, promotion and a health fallback make at a cycle boundary.
+#include "lode/clock.hpp"
+#include "lode/config_file.hpp"
+#include "lode/pipeline.hpp"
+
+#include <arpa/inet.h>
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <ctime>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <deque>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "lode/telemetry.hpp"
+#include "lode/units.hpp"
+#include "params_node.hpp"
+#include "pipeline_impl.hpp"
+#include "port_binder.hpp"
+#include "yaml_document.hpp"
+
+namespace lode {
+
+using namespace pipeline_detail;
+
+void Pipeline::Impl::check_shadows(const std::vector<BlockEntry*>& order) {
+  for (auto* b : order) {
+    if (b->shadow_of.empty() || !b->block) continue;
+    const std::string path = "blocks." + b->name + ".shadow_of";
+    BlockEntry* primary = find_block(b->shadow_of);
+    if (!primary || !primary->block) continue;  // reported already
+    // A shadow must be able to take its primary's place (promotion, fallback): every output
+    // of the primary, with the same elements.
+    for (const auto& po : primary->outputs) {
+      const DeclaredOutput* so = b->output(po.name);
+      std::string problem;
+      if (!so) {
+        problem = "it has no output '" + po.name + "'";
+      } else if (so->elements.size() != po.elements.size()) {
+        problem = "its output '" + po.name + "' has " + std::to_string(so->elements.size()) + " elements, " +
+                  b->shadow_of + "." + po.name + " has " + std::to_string(po.elements.size());
+      } else {
+        for (std::size_t i = 0; i < po.elements.size() && problem.empty(); ++i)
+          if (so->elements[i].unit != po.elements[i].unit)
+            problem = "its output '" + po.name + "." + so->elements[i].name + "' is in '" + so->elements[i].unit +
+                      "', " + b->shadow_of + "." + po.name + "." + po.elements[i].name + " in '" +
+                      po.elements[i].unit + "'";
+      }
+      if (!problem.empty())
+        error(b->shadow_where, path,
+              "shadow '" + b->name + "' (" + b->plugin_name + ") cannot stand in for '" + b->shadow_of + "' (" +
+                  primary->plugin_name + "): " + problem +
+                  " (a shadow must provide every output of its primary, same size and units)");
+    }
+    for (const auto& o : b->outputs)
+      if (o.name == kDisagreementPort || o.name == kNisPort)
+        error(b->shadow_where, path, "plugin " + b->plugin_name + " declares an output '" + o.name +
+                                         "', a name the pipeline reserves on shadows for their statistics");
+    // Its inputs must be computed before the primary steps (it runs right after it).
+    std::set<const BlockEntry*> before;
+    for (auto* o : order) {
+      if (o == primary) break;
+      before.insert(o);
+    }
+    for (const auto& w : b->wiring) {
+      const BlockEntry* src = find_block(w.src_block);
+      if (src && !src->is_io() && !before.count(src) && src->configured && src->block)
+        error(w.where, "blocks." + b->name + ".inputs." + w.input,
+              "'" + w.source + "' is computed after '" + b->shadow_of +
+                  "' in the cycle; a shadow steps right after its primary and can only read what the "
+                  "primary could");
+    }
+    if (primary->outputs.empty()) {
+      error(b->shadow_where, path, "'" + b->shadow_of + "' has no outputs: there is nothing to shadow");
+      continue;
+    }
+    // Statistics the pipeline publishes for the shadow: disagreement with the primary (on the
+    // primary's first output) and the normalised innovation squared.
+    const DeclaredOutput& first = primary->outputs.front();
+    Elements diff = first.elements;
+    b->outputs.push_back({kDisagreementPort, diff, &synthetic_ports.emplace_back(), 0, true});
+    b->outputs.push_back({kNisPort, Elements{{"nis", "1"}}, &synthetic_ports.emplace_back(), 0, true});
+  }
+}
+
+std::vector<Binding> Pipeline::Impl::plan_for(BlockEntry& record, const BlockEntry& role) {
+  std::vector<Binding> plan;
+  for (auto& o : record.outputs) {
+    if (o.synthetic) continue;
+    const DeclaredOutput* target = role.output(o.name);
+    bool same = target && !target->synthetic && target->elements.size() == o.elements.size();
+    for (std::size_t i = 0; same && i < o.elements.size(); ++i)
+      same = units_compatible(o.elements[i].unit, target->elements[i].unit) &&
+             units_compatible(target->elements[i].unit, o.elements[i].unit);
+    double* data = same ? arena.data() + target->offset : record.staging.data() + o.offset;
+    plan.push_back({o.port, data, o.elements.size()});
+  }
+  return plan;
+}
+
+void Pipeline::Impl::prepare_record(BlockEntry& record, const Family& family) {
+  // Staging: the record's own storage (offsets of a role's outputs are arena offsets; the
+  // staging copy is laid out the same way, one slot per element).
+  std::size_t size = 0;
+  if (record.candidate) {
+    size = 0;
+    for (auto& o : record.outputs) {
+      o.offset = size;
+      size += o.elements.size();
+    }
+  } else {
+    // Roles keep their arena offsets; give staging the same span.
+    size = 0;
+    for (auto& o : record.outputs)
+      if (!o.synthetic) size = std::max(size, o.offset + o.elements.size());
+  }
+  record.staging.assign(size, 0.0);
+  record.staging_plan.clear();
+  for (auto& o : record.outputs)
+    if (!o.synthetic) record.staging_plan.push_back({o.port, record.staging.data() + o.offset, o.elements.size()});
+  record.plans.clear();
+  for (const BlockEntry* role : family.roles) record.plans.push_back(plan_for(record, *role));
+  record.layout = record.block ? record.block->state_layout() : StateLayout{};
+}
+
+
+void Pipeline::Impl::build_families() {
+  for (std::size_t i = 0; i < ops.size(); ++i) {
+    if (ops[i].write_phase) continue;
+    BlockEntry* primary = nullptr;
+    for (auto& b : blocks)
+      if (b->block.get() == ops[i].block) primary = b.get();
+    if (!primary || primary->is_io()) continue;  // io blocks own hardware: not swappable
+    Family f;
+    f.primary = primary;
+    f.op = i;
+    f.roles.push_back(primary);
+    for (auto& b : blocks)
+      if (b->shadow_of == primary->name && b->block && !primary->outputs.empty()) f.roles.push_back(b.get());
+    for (std::size_t r = 1; r < f.roles.size(); ++r) {
+      BlockEntry* role = f.roles[r];
+      ShadowSlot slot;
+      slot.block = role->block.get();
+      slot.role = role;
+      slot.decimation = role->shadow_decimation;
+      const DeclaredOutput& first = primary->outputs.front();
+      slot.primary = arena.data() + first.offset;
+      slot.mine = arena.data() + output_offset(*role, first.name);
+      slot.disagreement = arena.data() + output_offset(*role, kDisagreementPort);
+      slot.disagreement_size = first.elements.size();
+      slot.nis = arena.data() + output_offset(*role, kNisPort);
+      slot.nu.assign(std::max<std::size_t>(1, role->block->innovation_size()), 0.0);
+      slot.s.assign(slot.nu.size(), 0.0);
+      f.shadows.push_back(std::move(slot));
+    }
+    for (const auto& o : primary->outputs) f.ranges.push_back({arena.data() + o.offset, nullptr, o.elements.size()});
+    ops[i].family = static_cast<int>(families.size());
+    for (std::size_t r = 0; r < f.roles.size(); ++r) {
+      f.roles[r]->family = static_cast<int>(families.size());
+      f.roles[r]->family_role = static_cast<int>(r);
+    }
+    families.push_back(std::move(f));
+  }
+  for (auto& f : families)
+    for (auto* role : f.roles) prepare_record(*role, f);
+}
+
+std::vector<BlockEntry*> Pipeline::Impl::instances() {
+  std::vector<BlockEntry*> out;
+  for (auto& b : blocks)
+    if (b->block) out.push_back(b.get());
+  for (auto& c : pool)
+    if (c->block) out.push_back(c.get());
+  return out;
+}
+
+void Pipeline::Impl::exchange_roles(Family& f, int role_a, int role_b) noexcept {
+  BlockEntry* a = f.roles[static_cast<std::size_t>(role_a)]->live.load(std::memory_order_relaxed);
+  BlockEntry* b = f.roles[static_cast<std::size_t>(role_b)]->live.load(std::memory_order_relaxed);
+  for (const auto& bind : a->plans[static_cast<std::size_t>(role_b)]) PortBinder::bind(*bind.port, bind.data, bind.size);
+  for (const auto& bind : b->plans[static_cast<std::size_t>(role_a)]) PortBinder::bind(*bind.port, bind.data, bind.size);
+  auto set_instance = [&](int role, BlockEntry* record) {
+    if (role == 0) ops[f.op].block = record->block.get();
+    else f.shadows[static_cast<std::size_t>(role - 1)].block = record->block.get();
+    f.roles[static_cast<std::size_t>(role)]->live.store(record, std::memory_order_release);
+  };
+  set_instance(role_a, b);
+  set_instance(role_b, a);
+}
+
+BlockEntry* Pipeline::Impl::install(Family& f, int role, BlockEntry& record) noexcept {
+  BlockEntry* old = f.roles[static_cast<std::size_t>(role)]->live.load(std::memory_order_relaxed);
+  for (const auto& bind : old->staging_plan) PortBinder::bind(*bind.port, bind.data, bind.size);
+  for (const auto& bind : record.plans[static_cast<std::size_t>(role)]) PortBinder::bind(*bind.port, bind.data, bind.size);
+  if (role == 0) ops[f.op].block = record.block.get();
+  else f.shadows[static_cast<std::size_t>(role - 1)].block = record.block.get();
+  f.roles[static_cast<std::size_t>(role)]->live.store(&record, std::memory_order_release);
+  return old;
+}
+
+}  // namespace lode
