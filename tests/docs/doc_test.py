@@ -4,7 +4,8 @@
 Every fenced block whose info string starts with `sh` must say what happens to it:
 
     ```sh runnable            run by this test, in order with the file's other blocks
-    ```sh runnable exit=2     run; the block's last command must exit 2 (a refused config)
+    ```sh runnable exit=2     run in a subshell; its last command must exit 2 (a refused
+                              config). A `cd` or `export` inside it does not carry on.
     ```sh not-run: REASON     shown only (installs packages, needs a VME crate, ...)
 
 A bare ```sh block is an error: a command nobody runs is a command that goes stale.
@@ -33,6 +34,7 @@ import socket
 import subprocess
 import sys
 import tempfile
+import time
 
 FENCE = re.compile(r"^(?P<indent>\s*)(?P<fence>```+|~~~+)(?P<info>.*)$")
 SHELL_LANGUAGES = {"sh", "bash", "shell", "console"}
@@ -161,6 +163,23 @@ def script_for(blocks):
     return "\n".join(out) + "\n"
 
 
+def end_process_group(pgid, sig):
+    try:
+        os.killpg(pgid, sig)
+    except ProcessLookupError:
+        return
+    for _ in range(100):
+        time.sleep(0.1)
+        try:
+            os.killpg(pgid, 0)
+        except ProcessLookupError:
+            return
+    try:
+        os.killpg(pgid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+
+
 def run_file(display, blocks, source, build, domain):
     root = tempfile.mkdtemp(prefix="lode-doc-test-")
     try:
@@ -171,23 +190,26 @@ def run_file(display, blocks, source, build, domain):
                    LODE_DOC_SOURCE=source, LODE_DOC_BUILD=build)
         env.pop("LODE_DDS_PEERS", None)
         env.pop("LODE_DDS_INTERFACES", None)
-        proc = subprocess.Popen(["bash", "-c", script_for(blocks)], cwd=work, env=env,
-                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                                start_new_session=True)
-        try:
-            output, _ = proc.communicate(timeout=FILE_TIMEOUT_S)
-            rc = proc.returncode
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            output, _ = proc.communicate()
-            output += f"\ndoc-test: FAILED: {display} took longer than {FILE_TIMEOUT_S} s\n"
-            rc = 124
-        finally:
-            # Whatever the blocks started in the background (`lode run ... &`) ends here.
+        # Output to a file, not a pipe: a background job (`lode run ... &`) keeps a pipe open
+        # after the blocks end, and waiting for its end-of-file would wait for the job.
+        log_path = os.path.join(root, "output.log")
+        with open(log_path, "w") as log:
+            proc = subprocess.Popen(["bash", "-c", script_for(blocks)], cwd=work, env=env, stdout=log,
+                                    stderr=subprocess.STDOUT, text=True, start_new_session=True)
             try:
-                os.killpg(proc.pid, signal.SIGTERM)
-            except ProcessLookupError:
-                pass
+                rc = proc.wait(timeout=FILE_TIMEOUT_S)
+                timed_out = False
+            except subprocess.TimeoutExpired:
+                timed_out = True
+                rc = 124
+            finally:
+                # Whatever the blocks started in the background ends here: asked to stop
+                # (a lode run drives its outputs safe and exits), killed after 10 s.
+                end_process_group(proc.pid, signal.SIGKILL if timed_out else signal.SIGTERM)
+                proc.wait()
+        output = open(log_path, encoding="utf-8", errors="replace").read()
+        if timed_out:
+            output += f"\ndoc-test: FAILED: {display} took longer than {FILE_TIMEOUT_S} s\n"
         return rc, output
     finally:
         shutil.rmtree(root, ignore_errors=True)
