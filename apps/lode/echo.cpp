@@ -41,23 +41,29 @@ int echo(const Args& args) {
     std::string pipeline = what.find('/') != std::string::npos ? what.substr(0, what.rfind('/')) : args.option("--pipeline");
     if (pipeline.rfind("lode/", 0) == 0) pipeline = pipeline.substr(5);
     Expected<std::unique_ptr<dds::Subscription>> sub = Status::error("unreachable");
-    // A named pipeline's events end with its "stop" event: then echo is done too.
+    // A pipeline's events end with its "stop" event: once every pipeline heard from (or the
+    // one named) has stopped, echo is done too.
     if (events && !pipeline.empty()) watch.follow(pipeline);
     if (events) {
       sub = client->subscribe_events(pipeline, [&](const dds::EventSample& e) {
         std::lock_guard lock(out_mutex);
         if (count > 0 && received >= count) return;
-        std::printf("%-16s cycle %-10llu t %.6f s  [%s] %s\n", e.pipeline.c_str(),
-                    static_cast<unsigned long long>(e.cycle), static_cast<double>(e.stamp_ns) * 1e-9,
-                    e.kind.c_str(), e.text.c_str());
-        std::fflush(stdout);
+        if (!quiet) {
+          std::printf("%-16s cycle %-10llu t %.6f s  [%s] %s\n", e.pipeline.c_str(),
+                      static_cast<unsigned long long>(e.cycle), static_cast<double>(e.stamp_ns) * 1e-9,
+                      e.kind.c_str(), e.text.c_str());
+          std::fflush(stdout);
+        }
+        watch.follow(e.pipeline);
         if (e.kind == "stop") watch.pipeline_stopped(e.pipeline);
-        if (count > 0 && ++received >= count) watch.done();
+        if (++received == count) watch.done();
       });
     } else {
       sub = client->subscribe_timing(pipeline, [&](const dds::TimingSample& t) {
         std::lock_guard lock(out_mutex);
         if (count > 0 && received >= count) return;
+        if (++received == count) watch.done();
+        if (quiet) return;
         std::printf("%-16s cycle %-10llu overruns %llu missed %llu dropped %llu  wake p50/p99/max %.1f/%.1f/%.1f us"
                     "  cycle p50/p99/max %.2f/%.2f/%.1f us\n",
                     t.pipeline.c_str(), static_cast<unsigned long long>(t.cycle),
@@ -68,7 +74,6 @@ int echo(const Args& args) {
         for (const auto& b : t.blocks)
           std::printf("    %-22s p50 %.2f  p99 %.2f  max %.1f us\n", b.name.c_str(), b.p50_us, b.p99_us, b.max_us);
         std::fflush(stdout);
-        if (count > 0 && ++received >= count) watch.done();
       });
     }
     if (!sub) {
@@ -87,8 +92,10 @@ int echo(const Args& args) {
     std::string header = "# " + m.topic + "  " + std::to_string(m.rate_hz) + " Hz\n# cycle t[s]";
     for (std::size_t k = 0; k < m.names.size(); ++k)
       header += " " + m.names[k] + unit_suffix(k < m.units.size() ? m.units[k] : "");
-    std::printf("%s\n", header.c_str());
-    std::fflush(stdout);
+    if (!quiet) {
+      std::printf("%s\n", header.c_str());
+      std::fflush(stdout);
+    }
     auto last_table = Clock::now();
     auto sub = client->subscribe(m, [&](const dds::SignalMeta& meta_, const dds::Sample& s) {
       std::lock_guard lock(out_mutex);
@@ -162,7 +169,7 @@ Command echo_command() {
             d.number("--duration", "S", "stop after S seconds", 0, 1e9);
             d.flag("--table", "a table that updates in place");
             d.flag("--latency", "print the delivery latency of each sample");
-            d.flag("--quiet", "no header line");
+            d.flag("--quiet", "print no samples (nor the header): only the summary on stderr, with --latency its statistics");
             d.text("--pipeline", "NAME", "the pipeline whose topic (or events, timing) to show when several run");
             d.number("--wait", "S", "how long to wait for the topic (default 5)", 0, 3600);
             d.dds_options();

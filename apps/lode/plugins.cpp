@@ -65,7 +65,7 @@ int list_plugins(const Args& args) {
                     pd.default_value ? pd.default_value : "(required)", pd.description);
       }
     }
-    std::printf("%zu plugins\n", listing.plugins.size());
+    std::printf("%zu plugin%s\n", listing.plugins.size(), listing.plugins.size() == 1 ? "" : "s");
   }
   for (const auto& e : listing.errors) std::fprintf(stderr, "lode: %s\n", e.c_str());
   return listing.errors.empty() ? kExitOk : kExitFault;

@@ -98,6 +98,58 @@ int send(const Args& args, dds::Client& client, const std::string& pipeline, Con
   return print_reply(request, *reply);
 }
 
+/// The local command socket of `pipeline` (or of the one pipeline on this host when none is
+/// named), polled until `wait` has passed. nullopt when there is none; `refusal` is set (and
+/// the reason printed) when the command must not go on: several pipelines and none named, or
+/// --local (`force_local`) and none came up.
+std::optional<std::string> find_local_socket(const std::optional<std::string>& pipeline, bool force_local,
+                                             milliseconds wait, int& refusal) {
+  const auto deadline = Clock::now() + wait;
+  for (;;) {
+    if (pipeline) {
+      const std::string path = local_control_socket(*pipeline);
+      if (probe_local_socket(path)) return path;
+    } else {
+      const auto live = live_local_pipelines();
+      if (live.size() == 1) return live[0].path;
+      if (live.size() > 1) {
+        std::fprintf(stderr, "lode: several pipelines run on this host; give --pipeline NAME (or NAME/...), or --dds for a remote one:");
+        for (const auto& p : live) std::fprintf(stderr, " %s (pid %d)", p.pipeline.c_str(), static_cast<int>(p.pid));
+        std::fprintf(stderr, "\n");
+        refusal = kExitConfig;  // refuse to guess
+        return std::nullopt;
+      }
+    }
+    if (Clock::now() >= deadline) break;
+    std::this_thread::sleep_for(milliseconds(100));
+  }
+  if (!force_local) return std::nullopt;
+  // --local: even a dead or missing socket, so the error says what is wrong with it.
+  if (pipeline) return local_control_socket(*pipeline);
+  std::fprintf(stderr, "lode: no pipeline runs on this host with a local command socket (looked in %s)\n",
+               local_control_dir().c_str());
+  refusal = kExitFault;
+  return std::nullopt;
+}
+
+int send_local(const std::string& role, const std::string& socket, ControlRequest request, const Args& args) {
+  request.id = new_request_id();
+  if (request.kind == "record_start" && !request.name.empty() && request.name[0] != '/') {
+    // Same host: a relative file means relative to the caller, not to the runner's cwd.
+    char cwd[4096];
+    if (getcwd(cwd, sizeof cwd)) request.name = std::string(cwd) + "/" + request.name;
+  }
+  char host[256] = "host";
+  gethostname(host, sizeof host - 1);
+  request.client = "lode-" + role + "-" + std::to_string(getpid()) + "@" + host;
+  auto reply = local_send(socket, request, reply_timeout(args));
+  if (!reply) {
+    std::fprintf(stderr, "lode: %s\n", reply.error().c_str());
+    return kExitFault;
+  }
+  return print_reply(request, *reply);
+}
+
 }  // namespace
 
 std::vector<std::string> split_list(const std::string& text) {
@@ -153,51 +205,31 @@ int send_command(const Args& args, const std::string& role, std::string target,
   auto request = make(target);
   if (!request) return kExitConfig;
 
+  // The local socket first. --local waits up to --wait for one to come up (the pipeline may
+  // still be loading); otherwise one look now, and one more if DDS finds no pipeline either.
+  int refusal = 0;
   std::optional<std::string> socket;  // set: go local
   if (!force_dds) {
-    if (pipeline) {
-      const std::string path = local_control_socket(*pipeline);
-      // --local: even a dead or missing socket, so the error says what is wrong with it.
-      if (force_local || probe_local_socket(path)) socket = path;
-    } else {
-      const auto live = live_local_pipelines();
-      if (live.size() == 1) {
-        socket = live[0].path;
-      } else if (live.size() > 1) {
-        std::fprintf(stderr, "lode: several pipelines run on this host; give --pipeline NAME (or NAME/...), or --dds for a remote one:");
-        for (const auto& p : live) std::fprintf(stderr, " %s (pid %d)", p.pipeline.c_str(), static_cast<int>(p.pid));
-        std::fprintf(stderr, "\n");
-        return kExitConfig;  // refuse to guess
-      } else if (force_local) {
-        std::fprintf(stderr, "lode: no pipeline runs on this host with a local command socket (looked in %s)\n",
-                     local_control_dir().c_str());
-        return kExitFault;
-      }
-    }
+    const auto wait = force_local ? wait_option(args, 3.0) : milliseconds(0);
+    socket = find_local_socket(pipeline, force_local, wait, refusal);
+    if (refusal != 0) return refusal;
   }
-  if (socket) {
-    request->id = new_request_id();
-    if (request->kind == "record_start" && !request->name.empty() && request->name[0] != '/') {
-      // Same host: a relative file means relative to the caller, not to the runner's cwd.
-      char cwd[4096];
-      if (getcwd(cwd, sizeof cwd)) request->name = std::string(cwd) + "/" + request->name;
-    }
-    char host[256] = "host";
-    gethostname(host, sizeof host - 1);
-    request->client = "lode-" + role + "-" + std::to_string(getpid()) + "@" + host;
-    auto reply = local_send(*socket, *request, reply_timeout(args));
-    if (!reply) {
-      std::fprintf(stderr, "lode: %s\n", reply.error().c_str());
-      return kExitFault;
-    }
-    return print_reply(*request, *reply);
-  }
+  if (socket) return send_local(role, *socket, *request, args);
   auto client = make_client(args, role);
   if (!client) return kExitConfig;
-  if (!pipeline) pipeline = target_pipeline(args, *client, target);
+  std::optional<std::string> target_name = pipeline;
+  if (!target_name) target_name = target_pipeline(args, *client, target);
+  if (!target_name && !force_dds) {
+    // None on DDS: a pipeline that came up on this host meanwhile is commanded locally.
+    if (auto late = find_local_socket(pipeline, false, milliseconds(0), refusal)) {
+      client.reset();
+      return send_local(role, *late, *request, args);
+    }
+    if (refusal != 0) return refusal;
+  }
   // None live, or several and none named: a command must never go to a guessed pipeline.
-  if (!pipeline) return kExitConfig;
-  return send(args, *client, *pipeline, *request);
+  if (!target_name) return kExitConfig;
+  return send(args, *client, *target_name, *request);
 }
 
 }  // namespace lode::cli

@@ -16,7 +16,8 @@ sed -e "s/^  domain: 0/  domain: $DOMAIN/" -e "s/^realtime: .*/realtime: { overr
   "$SRC/config/kawato_planar_swap.yaml" >"$TMP/swap.yaml"
 HYBRID='{q: [1.0e2, 1.0e2, 1.0e5], r: [2.2e-10, 2.2e-10, 9.6e-9], hinf_theta: 1.0e8, d: 0.5, output: predicted}'
 
-"$LODE" echo events --pipeline kawato_planar_swap --domain "$DOMAIN" --wait 60 --duration 90 >"$TMP/events.out" 2>&1 &
+# No --pipeline: echo follows every pipeline it hears and ends when they have stopped.
+"$LODE" echo events --domain "$DOMAIN" --wait 60 --duration 90 >"$TMP/events.out" 2>&1 &
 PIDS+=($!); ECHO=$!
 "$LODE" run "$TMP/swap.yaml" --clock real --duration 12 --record "$TMP/rec.h5" \
   --summary-json "$TMP/run.json" >"$TMP/run.out" 2>&1 &
@@ -51,6 +52,9 @@ check_rc "inject NaN on a Hall channel" 0 $? "$TMP/nan.out"
 # with the outputs driven safe: a stage must not coast away (unbounded, it did).
 wait $RUN; check_rc "the run faults once the fallback has coasted its envelope's 0.05 s" 1 $? "$TMP/run.out"
 contains "the fault names the envelope" "$TMP/run.out" "envelope: glsdc.pose has been invalid \(non-finite\) for [0-9.]+ ms, longer than its max_invalid_s of 50 ms"
+# The run has ended; its stop event ends the echo within a second (not at --duration 90).
+for _ in $(seq 1 100); do kill -0 $ECHO 2>/dev/null || break; sleep 0.1; done
+if kill -0 $ECHO 2>/dev/null; then echo "FAIL: lode echo events did not end with the pipeline"; fail=1; kill $ECHO; fi
 wait $ECHO
 
 contains "published: the swap" "$TMP/events.out" "\[swap\] swapped kf: estimator.kalman -> estimator.hybrid_h2hinf"

@@ -193,6 +193,14 @@ kill -INT "$RUNNER_PID"; wait "$RUNNER_PID"; RUNNER_PID=
   contains "telemetry on: the socket sees the DDS change" "$TMP/dds_get.out" '^ok: observer\.d = 0\.3'
   kill -INT "$RUNNER_PID"; wait "$RUNNER_PID"; check "telemetry on: run stops cleanly" 0 $?; RUNNER_PID=
   [ -e "$SOCK" ] && { echo "FAIL: telemetry on: socket left behind"; fail=1; }
+  # --local --wait: a command given while the pipeline still loads waits for its socket.
+  "$LODE" run "$CONFIG" --clock real --duration 3 --no-telemetry --quiet >"$TMP/late.log" 2>&1 &
+  RUNNER_PID=$!
+  "$LODE" set --local --wait 30 observer.d >"$TMP/late.out" 2>&1
+  check "--local --wait: a command waits for a pipeline still starting" 0 $?
+  wait "$RUNNER_PID"; RUNNER_PID=
+  "$LODE" set --local --wait 0.5 observer.d >"$TMP/none.out" 2>&1
+  check "--local --wait: none came up within the wait" 1 $?
   # --no-local-control: no socket at all.
   "$LODE" run "$CONFIG" --clock real --duration 1.5 --no-telemetry --no-local-control --quiet >"$TMP/nolocal.log" 2>&1 &
   RUNNER_PID=$!

@@ -108,6 +108,8 @@ commands)
   "$L" record --remote-stop "${D[@]}" --name console >"$TMP/rt.out" 2>&1; check_rc "remote record stop" 0 $?
   contains "remote recording closed" "$TMP/rt.out" "closed .*remote.h5 \([0-9]+ cycles\)"
   "$L" echo events --pipeline maglev6_hybrid --domain "$DOMAIN" --wait 5 --duration 3 >"$TMP/ev.out" 2>&1
+  check_rc "echo events --duration exits 0 when events came" 0 $?
+  contains "echo events counts what it printed" "$TMP/ev.out" "^lode echo: [1-9][0-9]* samples"
   contains "refusal is an event" "$TMP/ev.out" "\[command_refused\].*intruder"
   contains "change is an event" "$TMP/ev.out" "\[parameter\].*$param.*-> 0.5.*console"
   contains "the swap is an event" "$TMP/ev.out" "\[swap\].*observer.*estimator.hybrid_h2hinf"
