@@ -17,6 +17,10 @@
 
 #include <atomic>
 #include <chrono>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
@@ -171,6 +175,10 @@ int main(int argc, char** argv) {
       adc[i] = adc_volts[i].value_to_code(volts[i], clipped);
     }
   };
+  // The emulator creates the board's file when there is none; it removes what it created
+  // when it stops, so no stale board is left for the next run to open.
+  struct stat before {};
+  const bool created_here = ::stat(board.device.c_str(), &before) != 0 && errno == ENOENT;
   auto emulator = lode::vme::PentekEmulator::create(board.device, board.offset, board.layout, board.adc.size(),
                                                     board.dac.size(), frontend);
   if (!emulator) {
@@ -190,5 +198,7 @@ int main(int argc, char** argv) {
   std::printf("lode-vme-emu: stopped after %llu conversions, %llu DAC loads, %llu plant faults\n",
               static_cast<unsigned long long>(e.conversions()), static_cast<unsigned long long>(e.dac_loads()),
               static_cast<unsigned long long>((*plant)->faults()));
+  emulator->reset();
+  if (created_here) ::unlink(board.device.c_str());
   return 0;
 }

@@ -74,6 +74,8 @@ kill -TERM $EMU_PID
 wait $EMU_PID
 check_rc "emulator exits on SIGTERM" 0 $? "$TMP/emu.out"
 contains "emulator reports what it served" "$TMP/emu.out" "stopped after [0-9]+ conversions"
+[ ! -e "$WINDOW" ] && ok "the emulator removed the board file it created" \
+  || bad "the emulator left its board file $WINDOW behind"
 
 # 5. A shuffled register map, named relative to the config file, both processes started
 # elsewhere (/) so a path resolved against the working directory would not be found.
