@@ -33,13 +33,7 @@ namespace lode {
 using namespace pipeline_detail;
 
 void Pipeline::Impl::push_trip(const TripRecord& t) noexcept {
-  const std::uint64_t head = trip_head.load(std::memory_order_relaxed);
-  if (head - trip_tail.load(std::memory_order_acquire) >= kTripCapacity) {
-    trips_lost.fetch_add(1, std::memory_order_relaxed);
-    return;
-  }
-  trips[head % kTripCapacity] = t;
-  trip_head.store(head + 1, std::memory_order_release);
+  trips.push(t);  // full: dropped and counted, reported by take_health_trips()
 }
 
 namespace {
@@ -162,10 +156,8 @@ StepStatus Pipeline::Impl::after_primary(Family& f, const Tick& tick, StepStatus
 std::vector<Pipeline::HealthTrip> Pipeline::take_health_trips() {
   std::vector<HealthTrip> out;
   auto& im = *impl_;
-  const std::uint64_t head = im.trip_head.load(std::memory_order_acquire);
-  std::uint64_t tail = im.trip_tail.load(std::memory_order_relaxed);
-  for (; tail < head; ++tail) {
-    const TripRecord& t = im.trips[tail % Impl::kTripCapacity];
+  TripRecord t;
+  while (im.trips.pop(t)) {
     HealthTrip h;
     h.cycle = t.cycle;
     h.time_ns = t.time_ns;
@@ -183,12 +175,12 @@ std::vector<Pipeline::HealthTrip> Pipeline::take_health_trips() {
     }
     out.push_back(std::move(h));
   }
-  im.trip_tail.store(tail, std::memory_order_release);
-  const auto lost = im.trips_lost.exchange(0, std::memory_order_relaxed);
-  if (lost > 0) {
+  const std::uint64_t dropped = im.trips.dropped();
+  if (dropped > im.trips_lost_reported) {
     HealthTrip h;
     h.reason = "health trips lost (ring full)";
-    h.lost = lost;
+    h.lost = dropped - im.trips_lost_reported;
+    im.trips_lost_reported = dropped;
     out.push_back(std::move(h));
   }
   return out;

@@ -25,6 +25,7 @@
 #include "envelope.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
+#include "lode/spsc_ring.hpp"
 #include "lode/telemetry.hpp"
 
 namespace lode {
@@ -226,12 +227,10 @@ struct Pipeline::Impl {
   std::vector<std::unique_ptr<BlockEntry>> pool;  // hot-swap instances now running in a role
   std::deque<OutputPort> synthetic_ports;          // shadow statistics outputs
 
-  // Health trips: RT producer, one non-RT consumer.
+  // Health trips: RT producer, one non-RT consumer (take_health_trips).
   static constexpr std::size_t kTripCapacity = 64;
-  std::array<pipeline_detail::TripRecord, kTripCapacity> trips{};
-  std::atomic<std::uint64_t> trip_head{0};
-  std::atomic<std::uint64_t> trip_tail{0};
-  std::atomic<std::uint64_t> trips_lost{0};
+  SpscQueue<pipeline_detail::TripRecord> trips{kTripCapacity};
+  std::uint64_t trips_lost_reported = 0;  ///< consumer side: drops already reported
 
   std::deque<OutputPort> feed_ports;  // storage handles of the test pseudo-block "feed"
   PluginRegistry* registry = nullptr;

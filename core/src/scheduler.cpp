@@ -4,6 +4,7 @@
 #include <time.h>
 
 #include <cerrno>
+#include <cstring>
 #include <chrono>
 #include <fstream>
 #include <thread>
@@ -38,39 +39,45 @@ void RealClock::sleep_until(std::int64_t deadline_ns) noexcept {
 
 // --------------------------------------------------------------------------------------
 
+namespace {
+std::size_t total_size(const std::vector<SignalRef>& signals) {
+  std::size_t n = 0;
+  for (const auto& s : signals) n += s.size();
+  return n;
+}
+}  // namespace
+
 SignalTap::SignalTap(std::vector<SignalRef> signals, std::size_t capacity_records)
-    : signals_(std::move(signals)), capacity_(capacity_records) {
+    : signals_(std::move(signals)), ring_(total_size(signals_), capacity_records) {
   for (const auto& s : signals_) {
     columns_.push_back(stride_);
     stride_ += s.size();
   }
-  buffer_.assign(capacity_ * stride_, 0.0);
 }
 
 void SignalTap::capture(std::uint64_t cycle, std::int64_t time_ns) noexcept {
-  const std::uint64_t head = head_.load(std::memory_order_relaxed);
-  if (head - tail_.load(std::memory_order_acquire) >= capacity_) {
-    dropped_.fetch_add(1, std::memory_order_relaxed);
-    return;
+  double* values = ring_.claim();
+  if (values == nullptr) return;  // full: counted by the ring
+  for (const auto& s : signals_) {
+    std::memcpy(values, s.data, s.size() * sizeof(double));
+    values += s.size();
   }
-  double* rec = buffer_.data() + (head % capacity_) * stride_;
-  rec[0] = static_cast<double>(cycle);
-  rec[1] = static_cast<double>(time_ns) * 1e-9;
-  std::size_t c = 2;
-  for (const auto& s : signals_)
-    for (std::size_t i = 0; i < s.size(); ++i) rec[c++] = s.data[i];
-  head_.store(head + 1, std::memory_order_release);
+  SampleHeader header;
+  header.cycle = cycle;
+  header.stamp_ns = time_ns;
+  ring_.publish(header);
 }
 
 std::size_t SignalTap::drain(std::vector<double>& out) {
-  const std::uint64_t head = head_.load(std::memory_order_acquire);
-  std::uint64_t tail = tail_.load(std::memory_order_relaxed);
-  const std::size_t n = head - tail;
-  for (; tail < head; ++tail) {
-    const double* rec = buffer_.data() + (tail % capacity_) * stride_;
-    out.insert(out.end(), rec, rec + stride_);
+  std::size_t n = 0;
+  SampleHeader header;
+  while (const double* values = ring_.front(header)) {
+    out.push_back(static_cast<double>(header.cycle));
+    out.push_back(static_cast<double>(header.stamp_ns) * 1e-9);
+    out.insert(out.end(), values, values + (stride_ - 2));
+    ring_.pop();
+    ++n;
   }
-  tail_.store(tail, std::memory_order_release);
   return n;
 }
 

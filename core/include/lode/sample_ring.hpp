@@ -1,4 +1,5 @@
-// A wait-free single-producer single-consumer ring of fixed-width sample records.
+// A wait-free single-producer single-consumer ring of fixed-width sample records (the
+// SpscRingIndex of lode/spsc_ring.hpp over one allocation of records).
 //
 // The producer is the RT thread: push() never blocks, never allocates and never makes a
 // system call; when the ring is full the record is dropped and counted (the consumer is
@@ -6,10 +7,11 @@
 // one non-RT thread. Storage is allocated once, in the constructor.
 #pragma once
 
-#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
+
+#include "lode/spsc_ring.hpp"
 
 namespace lode {
 
@@ -29,26 +31,27 @@ class SampleRing {
   /// Producer (RT), gathering up to three pieces into one record (total = width()).
   bool push(const SampleHeader& header, const double* a, std::size_t na, const double* b,
             std::size_t nb, const double* c, std::size_t nc) noexcept;
+  /// Producer (RT), for records gathered from many pieces: the values of the next record
+  /// (width() of them) to fill, or nullptr when the ring is full (counted); then publish().
+  double* claim() noexcept;
+  void publish(const SampleHeader& header) noexcept;
 
   /// Consumer: pointer to the oldest record's values (nullptr if empty); valid until pop().
   const double* front(SampleHeader& header) const noexcept;
   void pop() noexcept;
 
   [[nodiscard]] std::size_t width() const noexcept { return width_; }
-  [[nodiscard]] std::size_t capacity() const noexcept { return mask_ + 1; }
-  [[nodiscard]] std::size_t size() const noexcept;
-  [[nodiscard]] std::uint64_t pushed() const noexcept { return head_.load(std::memory_order_relaxed); }
-  [[nodiscard]] std::uint64_t dropped() const noexcept { return dropped_.load(std::memory_order_relaxed); }
+  [[nodiscard]] std::size_t capacity() const noexcept { return index_.capacity(); }
+  [[nodiscard]] std::size_t size() const noexcept { return index_.size(); }
+  [[nodiscard]] std::uint64_t pushed() const noexcept { return index_.pushed(); }
+  [[nodiscard]] std::uint64_t dropped() const noexcept { return index_.dropped(); }
 
  private:
   std::size_t width_;
   std::size_t stride_;  ///< doubles per record: 3 header words + width
-  std::size_t mask_;
+  SpscRingIndex index_;
   std::vector<double> storage_;
-  alignas(64) std::atomic<std::uint64_t> head_{0};  ///< written by the producer only
-  std::uint64_t cached_tail_ = 0;                    ///< producer's last view of tail_
-  alignas(64) std::atomic<std::uint64_t> tail_{0};  ///< written by the consumer only
-  alignas(64) std::atomic<std::uint64_t> dropped_{0};
+  std::size_t claimed_ = 0;  ///< the producer's slot between claim() and publish()
 };
 
 }  // namespace lode

@@ -21,6 +21,7 @@
 #include "lode/histogram.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/telemetry.hpp"
+#include "lode/sample_ring.hpp"
 
 namespace lode {
 
@@ -68,7 +69,7 @@ class SignalTap final : public CycleHook {
   std::size_t drain(std::vector<double>& out);
   [[nodiscard]] std::size_t stride() const { return stride_; }
   [[nodiscard]] const std::vector<SignalRef>& signals() const { return signals_; }
-  [[nodiscard]] std::uint64_t dropped() const { return dropped_.load(std::memory_order_relaxed); }
+  [[nodiscard]] std::uint64_t dropped() const { return ring_.dropped(); }
   /// Column of signal i's first element within a record.
   [[nodiscard]] std::size_t column(std::size_t signal_index) const { return columns_[signal_index]; }
 
@@ -76,11 +77,7 @@ class SignalTap final : public CycleHook {
   std::vector<SignalRef> signals_;
   std::vector<std::size_t> columns_;
   std::size_t stride_ = 2;
-  std::size_t capacity_ = 0;  // records
-  std::vector<double> buffer_;
-  alignas(64) std::atomic<std::uint64_t> head_{0};  // written by producer
-  alignas(64) std::atomic<std::uint64_t> tail_{0};  // written by consumer
-  alignas(64) std::atomic<std::uint64_t> dropped_{0};
+  SampleRing ring_;  ///< values of every signal per cycle; the header carries cycle and time
 };
 
 struct RunStats {
