@@ -1,0 +1,276 @@
+// Reading a recording back (lode replay, tests): every series with its elements, units and
+// time columns, the events and the attributes; what cannot be read is said, not guessed.
+#include "lode/record/hdf5_recorder.hpp"
+
+#include "hdf5_common.hpp"
+
+namespace lode::record {
+
+using namespace detail;
+
+namespace {
+
+/// Every string of a string attribute or dataset (scalar or 1-D, variable or fixed length).
+template <typename Read>
+Expected<std::vector<std::string>> read_strings(hid_t file_type, hid_t space, Read&& read) {
+  const hssize_t count = H5Sget_simple_extent_npoints(space);
+  if (count < 0) return Status::error(hdf5_message());
+  std::vector<std::string> strings;
+  strings.reserve(static_cast<std::size_t>(count));
+  if (H5Tis_variable_str(file_type) > 0) {
+    Handle memory_type = utf8_string_type();
+    std::vector<char*> texts(static_cast<std::size_t>(count), nullptr);
+    if (count > 0 && read(memory_type.get(), texts.data()) < 0) return Status::error(hdf5_message());
+    for (char* text : texts) strings.emplace_back(text != nullptr ? text : "");
+    if (count > 0) H5Dvlen_reclaim(memory_type.get(), space, H5P_DEFAULT, texts.data());
+    return strings;
+  }
+  const std::size_t size = H5Tget_size(file_type);
+  Handle memory_type(H5Tcopy(H5T_C_S1));
+  H5Tset_size(memory_type.get(), size);
+  std::vector<char> buffer(size * static_cast<std::size_t>(count) + 1, '\0');
+  if (count > 0 && read(memory_type.get(), buffer.data()) < 0) return Status::error(hdf5_message());
+  for (hssize_t i = 0; i < count; ++i) {
+    const char* begin = buffer.data() + static_cast<std::size_t>(i) * size;
+    strings.emplace_back(begin, std::find(begin, begin + size, '\0'));
+  }
+  return strings;
+}
+
+Expected<std::vector<std::string>> read_string_attribute(hid_t object, const char* key) {
+  Handle attribute(H5Aopen(object, key, H5P_DEFAULT));
+  if (!attribute.valid()) return Status::error(std::string("attribute '") + key + "' is missing");
+  Handle type(H5Aget_type(attribute.get()));
+  Handle space(H5Aget_space(attribute.get()));
+  if (H5Tget_class(type.get()) != H5T_STRING) return Status::error(std::string("attribute '") + key + "' is not text");
+  auto strings = read_strings(type.get(), space.get(),
+                              [&](hid_t memory_type, void* out) { return H5Aread(attribute.get(), memory_type, out); });
+  if (!strings) return Status::error(std::string("attribute '") + key + "': " + strings.error());
+  return strings;
+}
+
+Expected<std::string> read_text_attribute(hid_t object, const char* key) {
+  auto strings = read_string_attribute(object, key);
+  if (!strings) return strings.status();
+  if (strings->size() != 1) return Status::error(std::string("attribute '") + key + "' is not a single string");
+  return strings->front();
+}
+
+/// A scalar numeric attribute converted by HDF5 to `memory_type`.
+template <typename T>
+Expected<T> read_number_attribute(hid_t object, const char* key, hid_t memory_type) {
+  Handle attribute(H5Aopen(object, key, H5P_DEFAULT));
+  if (!attribute.valid()) return Status::error(std::string("attribute '") + key + "' is missing");
+  T value{};
+  if (H5Aread(attribute.get(), memory_type, &value) < 0) {
+    return Status::error(std::string("attribute '") + key + "': " + hdf5_message());
+  }
+  return value;
+}
+
+template <typename T>
+Expected<std::vector<T>> read_column(hid_t group, const std::string& name, hid_t memory_type) {
+  Handle dataset(H5Dopen2(group, name.c_str(), H5P_DEFAULT));
+  if (!dataset.valid()) return Status::error("dataset '" + name + "' is missing");
+  Handle space(H5Dget_space(dataset.get()));
+  const hssize_t count = H5Sget_simple_extent_npoints(space.get());
+  if (count < 0) return Status::error("dataset '" + name + "': " + hdf5_message());
+  std::vector<T> values(static_cast<std::size_t>(count));
+  if (count > 0 && H5Dread(dataset.get(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0) {
+    return Status::error("dataset '" + name + "': " + hdf5_message());
+  }
+  return values;
+}
+
+Expected<std::vector<std::string>> read_string_column(hid_t group, const std::string& name) {
+  Handle dataset(H5Dopen2(group, name.c_str(), H5P_DEFAULT));
+  if (!dataset.valid()) return Status::error("dataset '" + name + "' is missing");
+  Handle type(H5Dget_type(dataset.get()));
+  Handle space(H5Dget_space(dataset.get()));
+  auto strings = read_strings(type.get(), space.get(), [&](hid_t memory_type, void* out) {
+    return H5Dread(dataset.get(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, out);
+  });
+  if (!strings) return Status::error("dataset '" + name + "': " + strings.error());
+  return strings;
+}
+
+struct RootAttributes {
+  Recording* recording;
+  std::string error;
+};
+
+herr_t collect_root_attribute(hid_t object, const char* key, const H5A_info_t* /*info*/, void* data) {
+  auto* out = static_cast<RootAttributes*>(data);
+  Handle attribute(H5Aopen(object, key, H5P_DEFAULT));
+  Handle type(H5Aget_type(attribute.get()));
+  Handle space(H5Aget_space(attribute.get()));
+  const H5T_class_t type_class = H5Tget_class(type.get());
+  if (type_class == H5T_STRING) {
+    auto text = read_text_attribute(object, key);
+    if (!text) {
+      out->error = text.error();
+      return -1;
+    }
+    out->recording->text_attributes[key] = *text;
+  } else if ((type_class == H5T_INTEGER || type_class == H5T_FLOAT) && H5Sget_simple_extent_npoints(space.get()) == 1) {
+    double value = 0;
+    if (H5Aread(attribute.get(), H5T_NATIVE_DOUBLE, &value) < 0) {
+      out->error = std::string("attribute '") + key + "': " + hdf5_message();
+      return -1;
+    }
+    out->recording->number_attributes[key] = value;
+  }  // other attributes (arrays, compounds added by other tools) are not part of the format
+  return 0;
+}
+
+herr_t collect_link_name(hid_t /*group*/, const char* name, const H5L_info_t* /*info*/, void* data) {
+  static_cast<std::vector<std::string>*>(data)->emplace_back(name);
+  return 0;
+}
+
+Expected<SeriesData> read_series(hid_t signals, const std::string& name, std::vector<std::string>& warnings) {
+  const std::string where = "/signals/" + name + ": ";
+  Handle group(H5Gopen2(signals, name.c_str(), H5P_DEFAULT));
+  if (!group.valid()) return Status::error(where + "not a group: " + hdf5_message());
+  const hid_t g = group.get();
+  SeriesData data;
+  data.info.name = name;
+  auto topic = read_text_attribute(g, "topic");
+  auto kind = read_text_attribute(g, "kind");
+  auto names = read_string_attribute(g, "names");
+  auto units = read_string_attribute(g, "units");
+  auto rate = read_number_attribute<double>(g, "rate_hz", H5T_NATIVE_DOUBLE);
+  auto pipeline_rate = read_number_attribute<double>(g, "pipeline_rate_hz", H5T_NATIVE_DOUBLE);
+  auto decimation = read_number_attribute<std::uint32_t>(g, "decimation", H5T_NATIVE_UINT32);
+  auto gaps = read_number_attribute<std::uint64_t>(g, "gaps", H5T_NATIVE_UINT64);
+  auto out_of_order = read_number_attribute<std::uint64_t>(g, "out_of_order", H5T_NATIVE_UINT64);
+  for (const Status& status : {topic.status(), kind.status(), names.status(), units.status(), rate.status(),
+                               pipeline_rate.status(), decimation.status(), gaps.status(), out_of_order.status()}) {
+    if (!status) return Status::error(where + status.message());
+  }
+  if (names->size() != units->size()) return Status::error(where + "attributes names and units differ in length");
+  data.info.topic = *topic;
+  data.info.kind = *kind;
+  data.info.names = *names;
+  data.info.units = *units;
+  data.info.rate_hz = *rate;
+  data.info.pipeline_rate_hz = *pipeline_rate;
+  data.info.decimation = *decimation;
+  data.gaps = *gaps;
+  data.out_of_order = *out_of_order;
+
+  auto cycle = read_column<std::uint64_t>(g, "cycle", H5T_NATIVE_UINT64);
+  auto stamp = read_column<std::int64_t>(g, "stamp_ns", H5T_NATIVE_INT64);
+  auto captured = read_column<std::int64_t>(g, "captured_ns", H5T_NATIVE_INT64);
+  for (const Status& status : {cycle.status(), stamp.status(), captured.status()}) {
+    if (!status) return Status::error(where + status.message());
+  }
+  std::vector<std::vector<double>> columns;
+  for (std::size_t i = 0; i < names->size(); ++i) {
+    auto column = read_column<double>(g, dataset_name_for((*names)[i], i), H5T_NATIVE_DOUBLE);
+    if (!column) return Status::error(where + column.error());
+    columns.push_back(std::move(*column));
+  }
+  // A writer that died in the middle of a write may leave columns of different lengths:
+  // keep the rows every column has.
+  std::size_t rows = std::min({cycle->size(), stamp->size(), captured->size()});
+  std::size_t longest = std::max({cycle->size(), stamp->size(), captured->size()});
+  for (const auto& column : columns) {
+    rows = std::min(rows, column.size());
+    longest = std::max(longest, column.size());
+  }
+  if (rows != longest) {
+    warnings.push_back(where + "columns have between " + std::to_string(rows) + " and " + std::to_string(longest) +
+                       " rows (the writer stopped during a write); read the first " + std::to_string(rows));
+  }
+  // Rows the writer reserved but whose data never reached the file (a crash between the
+  // extent's and the chunk's write, a full disk) read as the fill values: cycle UINT64_MAX,
+  // stamps INT64_MIN. They end the readable part: what follows is not data.
+  for (std::size_t row = 0; row < rows; ++row) {
+    if ((*cycle)[row] == kMissingCycle || (*stamp)[row] == kMissingStamp) {
+      warnings.push_back(where + "rows " + std::to_string(row) + " to " + std::to_string(rows - 1) +
+                         " were reserved but never written (the writer stopped); read the first " +
+                         std::to_string(row));
+      rows = row;
+      break;
+    }
+  }
+  cycle->resize(rows);
+  stamp->resize(rows);
+  captured->resize(rows);
+  data.cycle = std::move(*cycle);
+  data.stamp_ns = std::move(*stamp);
+  data.captured_ns = std::move(*captured);
+  data.values.resize(rows * columns.size());
+  for (std::size_t row = 0; row < rows; ++row) {
+    for (std::size_t v = 0; v < columns.size(); ++v) data.values[row * columns.size() + v] = columns[v][row];
+  }
+  return data;
+}
+
+}  // namespace
+
+Expected<Recording> read_recording(const std::string& path) {
+  silence_hdf5_errors();
+  const std::string where = "recording '" + path + "': ";
+  Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT));
+  if (!file.valid()) return Status::error(where + "cannot open: " + hdf5_message());
+  Recording recording;
+  RootAttributes root{&recording, {}};
+  if (H5Aiterate2(file.get(), H5_INDEX_NAME, H5_ITER_INC, nullptr, collect_root_attribute, &root) < 0) {
+    return Status::error(where + (root.error.empty() ? hdf5_message() : root.error));
+  }
+  const auto format = recording.text_attributes.find("format");
+  if (format == recording.text_attributes.end() || format->second != kFormat) {
+    return Status::error(where + "not a lodestone recording (root attribute format is not \"" + kFormat + "\")");
+  }
+  const auto version = recording.number_attributes.find("format_version");
+  if (version == recording.number_attributes.end() || version->second > kFormatVersion) {
+    return Status::error(where + "format_version is missing or newer than " + std::to_string(kFormatVersion) +
+                         ": update lodestone to read it");
+  }
+
+  Handle signals(H5Gopen2(file.get(), "signals", H5P_DEFAULT));
+  if (!signals.valid()) return Status::error(where + "group /signals is missing");
+  std::vector<std::string> names;
+  if (H5Literate(signals.get(), H5_INDEX_CRT_ORDER, H5_ITER_INC, nullptr, collect_link_name, &names) < 0) {
+    H5Eclear2(H5E_DEFAULT);  // creation order not tracked (written by another tool): by name
+    names.clear();
+    if (H5Literate(signals.get(), H5_INDEX_NAME, H5_ITER_INC, nullptr, collect_link_name, &names) < 0) {
+      return Status::error(where + "cannot list /signals: " + hdf5_message());
+    }
+  }
+  for (const auto& name : names) {
+    auto series = read_series(signals.get(), name, recording.warnings);
+    if (!series) return Status::error(where + series.error());
+    recording.series.push_back(std::move(*series));
+  }
+
+  Handle events(H5Gopen2(file.get(), "events", H5P_DEFAULT));
+  if (!events.valid()) return Status::error(where + "group /events is missing");
+  auto cycle = read_column<std::uint64_t>(events.get(), "cycle", H5T_NATIVE_UINT64);
+  auto stamp = read_column<std::int64_t>(events.get(), "stamp_ns", H5T_NATIVE_INT64);
+  auto kind = read_string_column(events.get(), "kind");
+  auto text = read_string_column(events.get(), "text");
+  for (const Status& status : {cycle.status(), stamp.status(), kind.status(), text.status()}) {
+    if (!status) return Status::error(where + "/events: " + status.message());
+  }
+  const std::size_t rows = std::min({cycle->size(), stamp->size(), kind->size(), text->size()});
+  if (rows != std::max({cycle->size(), stamp->size(), kind->size(), text->size()})) {
+    recording.warnings.push_back(
+        "/events: columns differ in length (the writer stopped during a write); read the first " +
+        std::to_string(rows));
+  }
+  for (std::size_t i = 0; i < rows; ++i) {
+    if ((*cycle)[i] == kMissingCycle) {  // reserved, never written (see read_series)
+      recording.warnings.push_back("/events: rows " + std::to_string(i) + " to " + std::to_string(rows - 1) +
+                                   " were reserved but never written (the writer stopped); read the first " +
+                                   std::to_string(i));
+      break;
+    }
+    recording.events.push_back({(*cycle)[i], (*stamp)[i], std::move((*kind)[i]), std::move((*text)[i])});
+  }
+  return recording;
+}
+
+}  // namespace lode::record
