@@ -22,16 +22,9 @@ dds::ParticipantOptions participant_options(const Args& args, const std::string&
   gethostname(host, sizeof host - 1);
   auto o = dds::options_from_environment("lode-" + role + "-" + std::to_string(getpid()) + "@" + host);
   if (args.has("--name")) o.name = args.option("--name");
-  if (args.has("--domain")) {
-    o.domain = static_cast<int>(args.integer("--domain", 0));
-  }
-  if (args.has("--transport")) {
-    const auto t = args.option("--transport");
-    if (t == "loopback") o.transport.kind = TransportSpec::Kind::loopback;
-    else if (t == "shm") o.transport.kind = TransportSpec::Kind::shm;
-    else if (t == "udp_loopback") o.transport.kind = TransportSpec::Kind::udp_loopback;
-    else if (t == "network") o.transport.kind = TransportSpec::Kind::network;
-  }
+  if (args.has("--domain")) o.domain = static_cast<int>(args.integer("--domain", 0));
+  // The parser accepted only the names transport_kind_from knows.
+  if (args.has("--transport")) o.transport.kind = *transport_kind_from(args.option("--transport"));
   if (args.has("--peers")) o.transport.initial_peers = split_list(args.option("--peers"));
   if (args.has("--interfaces")) o.transport.interfaces = split_list(args.option("--interfaces"));
   return o;

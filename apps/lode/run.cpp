@@ -19,6 +19,7 @@
 #include "load_config.hpp"
 #include "log_drain.hpp"
 #include "lode/crash_guard.hpp"
+#include "lode/dds/participant.hpp"
 #include "run_analysis.hpp"
 #include "run_report.hpp"
 #include "run_services.hpp"
@@ -56,14 +57,12 @@ std::optional<RunServiceOptions> service_options(const Args& args, bool simulate
   // points `lode echo` at a domain points the pipeline's publisher at the same one.
   if (args.has("--domain")) {
     o.domain = static_cast<int>(args.integer("--domain", 0));
-  } else if (const char* env = std::getenv("LODE_DDS_DOMAIN"); env != nullptr && *env != '\0') {
-    char* end = nullptr;
-    const long d = std::strtol(env, &end, 10);
-    if (*end != '\0' || d < 0 || d > 232) {
-      std::fprintf(stderr, "lode: LODE_DDS_DOMAIN must be an integer in [0, 232], got '%s'\n", env);
+  } else if (const auto env = dds::domain_from_environment()) {
+    if (*env < 0 || *env > 232) {
+      std::fprintf(stderr, "lode: LODE_DDS_DOMAIN must be an integer in [0, 232], got '%s'\n", std::getenv("LODE_DDS_DOMAIN"));
       return std::nullopt;
     }
-    o.domain = static_cast<int>(d);
+    o.domain = *env;
   }
   o.wait_subscribers = static_cast<int>(args.integer("--wait-subscribers", 0));
   o.wait_s = args.number("--wait", 10.0);

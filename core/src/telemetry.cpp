@@ -17,6 +17,13 @@ const char* to_string(TransportSpec::Kind kind) {
   return "?";
 }
 
+std::optional<TransportSpec::Kind> transport_kind_from(std::string_view name) {
+  for (const auto kind : {TransportSpec::Kind::loopback, TransportSpec::Kind::shm, TransportSpec::Kind::udp_loopback,
+                          TransportSpec::Kind::network})
+    if (name == to_string(kind)) return kind;
+  return std::nullopt;
+}
+
 std::string signal_topic(const std::string& pipeline, const std::string& block, const std::string& port) {
   return "lode/" + pipeline + "/" + block + "/" + port;
 }

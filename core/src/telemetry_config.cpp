@@ -58,10 +58,7 @@ void Pipeline::Impl::parse_telemetry(const YAML::Node& t) {
   p.check(domain >= 0 && domain <= 232, "domain", "DDS domain id must be in 0..232, got " + std::to_string(domain));
   spec.domain = static_cast<int>(domain);
   const auto transport = p.choice("transport", {"loopback", "shm", "udp_loopback", "network"}, "loopback");
-  spec.transport.kind = transport == "shm"            ? TransportSpec::Kind::shm
-                        : transport == "udp_loopback" ? TransportSpec::Kind::udp_loopback
-                        : transport == "network"      ? TransportSpec::Kind::network
-                                                      : TransportSpec::Kind::loopback;
+  spec.transport.kind = transport_kind_from(transport).value_or(TransportSpec::Kind::loopback);
   if (auto net = p.optional_child("network")) {
     spec.transport.interfaces = net->texts("interfaces", {});
     for (std::size_t i = 0; i < spec.transport.interfaces.size(); ++i)

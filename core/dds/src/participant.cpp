@@ -6,10 +6,12 @@
 #include <arpa/inet.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstdlib>
+#include <limits>
 #include <memory>
-#include <sstream>
 #include <optional>
+#include <sstream>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -226,22 +228,25 @@ void delete_participant(fdds::DomainParticipant* participant) {
   fdds::DomainParticipantFactory::get_instance()->delete_participant(participant);
 }
 
+std::optional<int> domain_from_environment() {
+  const char* domain = std::getenv("LODE_DDS_DOMAIN");
+  if (domain == nullptr || *domain == '\0') return std::nullopt;
+  char* end = nullptr;
+  errno = 0;
+  const long value = std::strtol(domain, &end, 10);
+  if (*end != '\0' || errno == ERANGE || value < std::numeric_limits<int>::min() ||
+      value > std::numeric_limits<int>::max())
+    return -1;
+  return static_cast<int>(value);
+}
+
 ParticipantOptions options_from_environment(const std::string& name) {
   ParticipantOptions options;
   options.name = name.empty() ? default_client_name() : name;
-  if (const char* domain = std::getenv("LODE_DDS_DOMAIN"); domain != nullptr && *domain != '\0') {
-    char* end = nullptr;
-    const long value = std::strtol(domain, &end, 10);
-    // Out of range or not a number: kept, so configure_participant_qos names the problem.
-    options.domain = (*end == '\0') ? static_cast<int>(value) : -1;
-  }
-  if (const char* kind = std::getenv("LODE_DDS_TRANSPORT"); kind != nullptr) {
-    const std::string k = kind;
-    if (k == "shm") options.transport.kind = TransportSpec::Kind::shm;
-    else if (k == "udp_loopback") options.transport.kind = TransportSpec::Kind::udp_loopback;
-    else if (k == "network") options.transport.kind = TransportSpec::Kind::network;
-    else options.transport.kind = TransportSpec::Kind::loopback;  // "loopback" or unknown
-  }
+  // Out of range or not a number: kept, so configure_participant_qos names the problem.
+  if (const auto domain = domain_from_environment()) options.domain = *domain;
+  if (const char* kind = std::getenv("LODE_DDS_TRANSPORT"); kind != nullptr)
+    options.transport.kind = transport_kind_from(kind).value_or(TransportSpec::Kind::loopback);  // unknown: loopback
   options.transport.initial_peers = split_list(std::getenv("LODE_DDS_PEERS"));
   options.transport.interfaces = split_list(std::getenv("LODE_DDS_INTERFACES"));
   return options;

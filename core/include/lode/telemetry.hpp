@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "lode/pipeline.hpp"
@@ -34,6 +35,8 @@ struct TransportSpec {
 };
 
 [[nodiscard]] const char* to_string(TransportSpec::Kind kind);
+/// The kind a name (as to_string writes it) stands for; nullopt for any other text.
+[[nodiscard]] std::optional<TransportSpec::Kind> transport_kind_from(std::string_view name);
 
 /// DDS Security (authentication + access control + encryption) with the builtin plugins.
 /// Empty paths = security off. Paths are resolved relative to the pipeline file.

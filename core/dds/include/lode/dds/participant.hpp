@@ -45,5 +45,8 @@ void delete_participant(eprosima::fastdds::dds::DomainParticipant* participant);
 /// (loopback|shm|udp_loopback|network), LODE_DDS_PEERS (comma separated),
 /// LODE_DDS_INTERFACES (comma separated).
 ParticipantOptions options_from_environment(const std::string& name);
+/// LODE_DDS_DOMAIN: nullopt when unset or empty, -1 when it is not an int (the caller names
+/// the problem), else its value (not yet checked against 0..232).
+std::optional<int> domain_from_environment();
 
 }  // namespace lode::dds
