@@ -27,7 +27,8 @@ def main():
            "Every plugin shipped with lodestone, with its ports and parameters. Generated from",
            "`lode plugins --json` by `docs/make_plugins_md.py`; `lode plugins NAME` shows one on",
            "the command line. Each plugin's own README (`plugins/<kind>/<name>/README.md`) has the",
-           "equations, units and measured figures.", ""]
+           "equations, units and measured figures. Models (plant, sensor) have no ports: their",
+           "inputs and outputs are listed in their READMEs.", ""]
     kinds = {}
     for p in plugins:
         kinds.setdefault(p["name"].split(".")[0], []).append(p)
@@ -41,8 +42,10 @@ def main():
         out.append("")
         out.append(f"{cell(p['summary'])} (version {p['version']}, {p['kind']})")
         out.append("")
-        out += table(["port", "direction", "what"],
-                     [[f"`{port['name']}`", port["direction"], cell(port["description"])] for port in p["ports"]])
+        out += table(["port", "direction", "what", "present"],
+                     [[f"`{port['name']}`", port["direction"], cell(port["description"]),
+                       "always" if port.get("condition") is None else cell(port["condition"])]
+                      for port in p["ports"]])
         out += table(["parameter", "type", "default", "what"],
                      [[f"`{q['name']}`", cell(q["type"]),
                        "(required)" if q["default"] is None else f"`{cell(q['default'])}`", cell(q["description"])]

@@ -4,7 +4,7 @@
 #include <iostream>
 
 #include "commands.hpp"
-#include "lode/json.hpp"
+#include "lode/sdk/json.hpp"
 #include "lode/plugin_loader.hpp"
 
 namespace lode::cli {
@@ -44,7 +44,8 @@ int list_plugins(const Args& args) {
     for (std::size_t i = 0; i < d->port_count; ++i) {
       Json pj = Json::object();
       pj["name"] = d->ports[i].name;
-      pj["direction"] = d->ports[i].direction;
+      pj["direction"] = to_string(d->ports[i].direction);
+      pj["condition"] = d->ports[i].condition ? Json(d->ports[i].condition) : Json();
       pj["description"] = d->ports[i].description;
       ports.push(std::move(pj));
     }
@@ -58,7 +59,8 @@ int list_plugins(const Args& args) {
       const auto* d = p.descriptor;
       std::printf("%-26s %-7s %-8s %s\n", d->name, to_string(d->kind), d->version, d->summary);
       for (std::size_t i = 0; i < d->port_count; ++i)
-        std::printf("    %-4s %-18s %s\n", d->ports[i].direction, d->ports[i].name, d->ports[i].description);
+        std::printf("    %-4s %-18s %s%s%s\n", to_string(d->ports[i].direction), d->ports[i].name, d->ports[i].description,
+                    d->ports[i].condition ? "; only " : "", d->ports[i].condition ? d->ports[i].condition : "");
       for (std::size_t i = 0; i < d->param_count; ++i) {
         const auto& pd = d->params[i];
         std::printf("    %-23s %-13s %-12s %s\n", pd.name, pd.type,

@@ -304,8 +304,8 @@ std::optional<int> replay_one(const ReplayContext& ctx, const Job& job, ConfigRe
   const std::size_t rows = ctx.source.rows;
   CompareHook hook(tracked->signals, rows);
   for (const auto& e : tracked->estimators) {
-    const Block* b = p->block(e.block);
-    if (b && b->innovation_size() > 0) hook.track_nis(*p, e.block);
+    const auto* estimator = dynamic_cast<const EstimatorState*>(p->block(e.block));
+    if (estimator && estimator->innovation_size() > 0) hook.track_nis(*p, e.block);
   }
   sched.add_hook(&hook);
   if (!ctx.args.quiet) std::fprintf(stderr, "lode: replaying %zu cycles through %s\n", rows, job.label.c_str());

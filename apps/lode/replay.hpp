@@ -20,8 +20,9 @@
 #include <vector>
 
 #include "analysis.hpp"
-#include "lode/json.hpp"
+#include "lode/sdk/json.hpp"
 #include "lode/pipeline.hpp"
+#include "lode/sdk/estimator_state.hpp"
 #include "lode/plugin_loader.hpp"
 #include "lode/record/hdf5_recorder.hpp"
 #include "lode/scheduler.hpp"
@@ -39,12 +40,13 @@ std::string rewrite_for_replay(const std::string& yaml, const std::string& recor
                                std::vector<std::string>& replaced, std::string& note);
 
 /// Copies the compared signals and each estimator's NIS every cycle into storage sized
-/// before the run (RT-safe: memcpy, the Block API's innovation(), arithmetic).
+/// before the run (RT-safe: memcpy, EstimatorState::innovation(), arithmetic).
 class CompareHook final : public CycleHook {
  public:
   struct Nis {
     Block* const* slot = nullptr;
     const Block* configured = nullptr;  ///< the instance whose innovation_size() sized `nu`
+    const EstimatorState* estimator = nullptr;  ///< its estimator interface
     std::vector<double> nu, s;
     std::vector<double> values;  ///< per cycle; NaN when innovation() returned false
   };
@@ -57,7 +59,8 @@ class CompareHook final : public CycleHook {
     Nis n;
     n.slot = p.block_slot(name);
     n.configured = p.block(name);
-    const std::size_t m = n.configured ? n.configured->innovation_size() : 0;
+    n.estimator = dynamic_cast<const EstimatorState*>(n.configured);
+    const std::size_t m = n.estimator ? n.estimator->innovation_size() : 0;
     n.nu.assign(m, 0.0);
     n.s.assign(m, 0.0);
     n.values.assign(capacity_, std::nan(""));
@@ -74,7 +77,7 @@ class CompareHook final : public CycleHook {
       const Block* b = n.slot ? *n.slot : nullptr;
       // A block swapped in by the health monitor may have another innovation size: its
       // NIS is not counted (its size cannot be asked on this thread).
-      if (!b || b != n.configured || n.nu.empty() || !b->innovation(n.nu.data(), n.s.data())) continue;
+      if (!b || b != n.configured || n.nu.empty() || !n.estimator->innovation(n.nu.data(), n.s.data())) continue;
       double sum = 0.0;
       for (std::size_t i = 0; i < n.nu.size(); ++i) sum += n.nu[i] * n.nu[i] / n.s[i];
       n.values[k] = sum;

@@ -1,4 +1,4 @@
-#include "lode/block_host.hpp"
+#include "lode/sdk/testing/block_host.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -78,7 +78,7 @@ StepStatus BlockHost::step() {
   return impl_->dut->step(impl_->tick);
 }
 
-StepStatus BlockHost::write() { return impl_->dut->write(impl_->tick); }
+StepStatus BlockHost::write() { return board().write(impl_->tick); }
 
 void BlockHost::deactivate() { impl_->pipeline->deactivate(); }
 
@@ -111,5 +111,20 @@ Json BlockHost::describe() const {
 std::string BlockHost::diagnostics() const { return impl_->diagnostics.format(); }
 const Tick& BlockHost::tick() const { return impl_->tick; }
 Block& BlockHost::block() { return *impl_->dut; }
+
+namespace {
+template <typename Interface>
+Interface& interface_of(Block* dut, const std::string& plugin, const char* name) {
+  auto* found = dynamic_cast<Interface*>(dut);
+  if (!found) throw std::logic_error(plugin + " does not implement lode::" + name);
+  return *found;
+}
+}  // namespace
+
+Tunables& BlockHost::tunables() { return interface_of<Tunables>(impl_->dut, impl_->plugin, "Tunables"); }
+EstimatorState& BlockHost::estimator() {
+  return interface_of<EstimatorState>(impl_->dut, impl_->plugin, "EstimatorState");
+}
+Board& BlockHost::board() { return interface_of<Board>(impl_->dut, impl_->plugin, "Board"); }
 
 }  // namespace lode

@@ -49,7 +49,8 @@ ControlService::ControlService(Pipeline& pipeline, EventLog& events) : pipeline_
     e.block = name;
     e.slot = pipeline_.block_slot(name);
     e.instance = pipeline_.block(name);
-    if (e.instance) e.tunables = e.instance->tunables();
+    e.interface = dynamic_cast<Tunables*>(e.instance);
+    if (e.interface) e.tunables = e.interface->tunables();
     entries_.push_back(std::move(e));
   }
 }
@@ -61,7 +62,8 @@ void ControlService::refresh() {
     Block* now = pipeline_.block(e.block);
     if (now != e.instance) {
       e.instance = now;
-      e.tunables = now ? now->tunables() : std::vector<Tunable>{};
+      e.interface = dynamic_cast<Tunables*>(now);
+      e.tunables = e.interface ? e.interface->tunables() : std::vector<Tunable>{};
     }
   }
 }
@@ -86,10 +88,10 @@ void ControlService::before_cycle(const Tick& tick) noexcept {
     state_.store(kDone, std::memory_order_release);
     return;
   }
-  box_previous_ = box_block_->tunable_value(box_index_);
+  box_previous_ = box_tunables_->tunable_value(box_index_);
   box_why_ = "";
-  box_ok_ = box_write_ ? box_block_->set_tunable(box_index_, box_value_, box_why_) : true;
-  box_now_ = box_block_->tunable_value(box_index_);
+  box_ok_ = box_write_ ? box_tunables_->set_tunable(box_index_, box_value_, box_why_) : true;
+  box_now_ = box_tunables_->tunable_value(box_index_);
   state_.store(kDone, std::memory_order_release);
 }
 
@@ -131,6 +133,7 @@ bool ControlService::parse_value(const std::string& text, const Tunable& t, doub
 ControlReply ControlService::exchange(const ControlRequest& r, const Entry& e, std::size_t index, bool write,
                                       double value, std::chrono::milliseconds timeout) {
   box_block_ = e.instance;
+  box_tunables_ = e.interface;
   box_slot_ = e.slot;
   box_index_ = index;
   box_write_ = write;

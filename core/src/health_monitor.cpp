@@ -1,9 +1,9 @@
 // The health monitor of a primary estimator (`health:`): non-finite outputs, the exported
 // covariance's Cholesky factorisation, the windowed NIS against a chi-square threshold and the
 // step time against its budget; a trip hands over to the fallback shadow in the same cycle.
-#include "lode/clock.hpp"
+#include "lode/sdk/clock.hpp"
 #include "lode/config_file.hpp"
-#include "lode/math/statistics.hpp"
+#include "lode/sdk/math/statistics.hpp"
 #include "lode/pipeline.hpp"
 
 #include <arpa/inet.h>
@@ -22,7 +22,7 @@
 #include <sstream>
 
 #include "lode/telemetry.hpp"
-#include "lode/units.hpp"
+#include "lode/sdk/units.hpp"
 #include "params_node.hpp"
 #include "pipeline_impl.hpp"
 #include "port_binder.hpp"
@@ -71,8 +71,8 @@ StepStatus Pipeline::Impl::after_primary(Family& f, const Tick& tick, StepStatus
     slot.stepped_ok = true;
     for (std::size_t i = 0; i < slot.disagreement_size; ++i) slot.disagreement[i] = slot.mine[i] - slot.primary[i];
     double nis = std::numeric_limits<double>::quiet_NaN();
-    const std::size_t m = slot.block->innovation_size();
-    if (m > 0 && m <= slot.nu.size() && slot.block->innovation(slot.nu.data(), slot.s.data())) {
+    const std::size_t m = slot.estimator ? slot.estimator->innovation_size() : 0;
+    if (m > 0 && m <= slot.nu.size() && slot.estimator->innovation(slot.nu.data(), slot.s.data())) {
       nis = 0.0;
       for (std::size_t i = 0; i < m; ++i) nis += slot.nu[i] * slot.nu[i] / slot.s[i];
     }
@@ -88,23 +88,24 @@ StepStatus Pipeline::Impl::after_primary(Family& f, const Tick& tick, StepStatus
   const char* trip = nullptr;
   Block* primary = ops[f.op].block;
   if (status != StepStatus::ok) trip = primary->fault_reason();
+  BlockEntry* live = f.roles[0]->live.load(std::memory_order_relaxed);
+  EstimatorState* estimator = live->estimator;
   if (!trip && h.non_finite)
     for (const auto& r : f.ranges)
       for (std::size_t i = 0; i < r.size && !trip; ++i)
         if (!std::isfinite(r.primary[i])) trip = "non-finite output";
-  BlockEntry* live = f.roles[0]->live.load(std::memory_order_relaxed);
-  if (!trip && h.covariance_every > 0 && live->layout.covariance && tick.cycle % h.covariance_every == 0 &&
+  if (!trip && h.covariance_every > 0 && estimator && live->layout.covariance && tick.cycle % h.covariance_every == 0 &&
       f.state_values.size() >= live->layout.size() &&
       f.state_covariance.size() >= live->layout.size() * live->layout.size()) {
-    primary->export_state(f.state_values.data(), f.state_covariance.data());
+    estimator->export_state(f.state_values.data(), f.state_covariance.data());
     for (std::size_t i = 0; i < live->layout.size() && !trip; ++i)
       if (!std::isfinite(f.state_values[i])) trip = "non-finite state";
     if (!trip && !positive_definite(f.state_covariance.data(), live->layout.size()))
       trip = "covariance not positive definite";
   }
   if (!trip && h.nis_window > 0) {
-    const std::size_t m = primary->innovation_size();
-    if (m > 0 && m <= f.nu.size() && primary->innovation(f.nu.data(), f.s.data())) {
+    const std::size_t m = estimator ? estimator->innovation_size() : 0;
+    if (m > 0 && m <= f.nu.size() && estimator->innovation(f.nu.data(), f.s.data())) {
       double nis = 0.0;
       for (std::size_t i = 0; i < m; ++i) nis += f.nu[i] * f.nu[i] / f.s[i];
       if (f.nis_count == h.nis_window) f.nis_sum -= f.nis_ring[f.nis_pos];
@@ -225,7 +226,7 @@ void Pipeline::Impl::parse_health(const YAML::Node& h) {
     const auto window = p.integer("nis_window", 0);
     p.check(window >= 0 && window <= 1000000, "nis_window", "must be in 0..1000000 cycles (0 = off)");
     spec.nis_window = static_cast<std::uint32_t>(std::clamp<std::int64_t>(window, 0, 1000000));
-    const std::size_t m = b->block->innovation_size();
+    const std::size_t m = b->estimator ? b->estimator->innovation_size() : 0;
     if (spec.nis_window > 0 && m == 0)
       p.fail("nis_window", "plugin " + b->plugin_name + " reports no innovation (innovation_size() = 0): no NIS test possible");
     const double probability = p.number("nis_false_alarm", 1e-6);
@@ -237,7 +238,7 @@ void Pipeline::Impl::parse_health(const YAML::Node& h) {
     } else if (spec.nis_window > 0 && m > 0) {
       // The window mean of NIS is chi-square with W m degrees of freedom divided by W (white,
       // consistent innovations): the threshold is that distribution's upper quantile at the
-      // false-alarm probability, exact (lode/math/statistics; the Wilson-Hilferty (1931)
+      // false-alarm probability, exact (lode/sdk/math/statistics; the Wilson-Hilferty (1931)
       // approximation used before is 7 % high for W m = 3 at 1e-6).
       const double k = static_cast<double>(spec.nis_window) * static_cast<double>(m);
       spec.nis_threshold = math::chi_square_quantile(1.0 - probability, k) / static_cast<double>(spec.nis_window);

@@ -1,4 +1,4 @@
-#include "lode/clock.hpp"
+#include "lode/sdk/clock.hpp"
 #include "lode/hot_swap.hpp"
 
 #include <yaml-cpp/yaml.h>
@@ -10,7 +10,7 @@
 #include <ctime>
 #include <thread>
 
-#include "lode/units.hpp"
+#include "lode/sdk/units.hpp"
 #include "params_node.hpp"
 #include "pipeline_impl.hpp"
 #include "port_binder.hpp"
@@ -141,7 +141,8 @@ void HotSwap::after_cycle(const Tick& tick) noexcept {
     return;
   }
   if (p.warm) {
-    Block* incumbent = p.role == 0 ? im.ops[f.op].block : f.shadows[static_cast<std::size_t>(p.role - 1)].block;
+    // Warm starts are prepared only between two estimators with state (both layouts non-empty).
+    EstimatorState* incumbent = f.roles[static_cast<std::size_t>(p.role)]->live.load(std::memory_order_relaxed)->estimator;
     incumbent->export_state(p.src_values.data(), p.src_has_cov ? p.src_cov.data() : nullptr);
     const std::size_t n_to = p.dst_values.size();
     const std::size_t n_from = p.src_values.size();
@@ -154,7 +155,7 @@ void HotSwap::after_cycle(const Tick& tick) noexcept {
         p.dst_cov[j * n_to + k] = (i >= 0 && l >= 0) ? p.src_cov[static_cast<std::size_t>(i) * n_from + static_cast<std::size_t>(l)] : 0.0;
       }
     }
-    p.record->block->import_state(p.dst_values.data(), p.dst_has_cov ? p.dst_cov.data() : nullptr, p.present.data());
+    p.record->estimator->import_state(p.dst_values.data(), p.dst_has_cov ? p.dst_cov.data() : nullptr, p.present.data());
   }
   if (p.shadow_cycles > 0) {
     f.warming = p.record->block.get();
@@ -248,7 +249,7 @@ SwapReport HotSwap::finish(PreparedPtr prepared) {
       auto it = std::find_if(im.pool.begin(), im.pool.end(), [&](const auto& c) { return c.get() == retired; });
       if (it != im.pool.end()) im.pool.erase(it);
     } else {
-      retired->block.reset();  // the role keeps its storage; its first instance is gone
+      retired->adopt(nullptr);  // the role keeps its storage; its first instance is gone
       retired->plans.clear();
       retired->staging_plan.clear();
       retired->inputs.clear();

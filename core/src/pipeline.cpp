@@ -1,5 +1,5 @@
 // A loaded pipeline: its signals and accessors, activation, and the cycle itself.
-#include "lode/clock.hpp"
+#include "lode/sdk/clock.hpp"
 #include "lode/config_file.hpp"
 #include "lode/pipeline.hpp"
 
@@ -19,7 +19,7 @@
 #include <sstream>
 
 #include "lode/telemetry.hpp"
-#include "lode/units.hpp"
+#include "lode/sdk/units.hpp"
 #include "params_node.hpp"
 #include "pipeline_impl.hpp"
 #include "port_binder.hpp"
@@ -109,7 +109,7 @@ std::vector<SignalRef> Pipeline::signals() const {
 Status Pipeline::activate() {
   std::fill(impl_->arena.begin(), impl_->arena.end(), 0.0);
   impl_->envelope.reset();
-  std::vector<Block*> activated;
+  std::vector<BlockEntry*> activated;
   for (auto* b : impl_->instances()) {
     Status st;
     try {
@@ -119,11 +119,12 @@ Status Pipeline::activate() {
     }
     if (!st) {
       // Nothing starts half-configured: undo what was activated.
-      for (auto* a : activated) a->drive_safe();
-      for (auto* a : activated) a->deactivate();
+      for (auto* a : activated)
+        if (a->board) a->board->drive_safe();
+      for (auto* a : activated) a->block->deactivate();
       return Status::error("block '" + b->name + "' failed to activate: " + st.message());
     }
-    activated.push_back(b->block.get());
+    activated.push_back(b);
   }
   for (auto& f : impl_->families) {
     f.fallback_used = false;
@@ -145,7 +146,7 @@ void Pipeline::deactivate() noexcept {
 
 void Pipeline::drive_safe() noexcept {
   for (auto& b : impl_->blocks)
-    if (b->block && b->is_io()) b->block->drive_safe();
+    if (b->board) b->board->drive_safe();
 }
 
 std::string Pipeline::envelope_violation() const { return impl_->envelope.violation_text(); }
@@ -162,7 +163,7 @@ Pipeline::CycleResult Pipeline::run_cycle(const Tick& tick, bool time_ops) noexc
     Family* family = op.family >= 0 ? &impl_->families[static_cast<std::size_t>(op.family)] : nullptr;
     const bool timed = time_ops || (family && family->health.step_budget_ns > 0);
     const std::int64_t start = timed ? monotonic_ns() : 0;
-    StepStatus s = op.write_phase ? op.block->write(tick) : op.block->step(tick);
+    StepStatus s = op.write_phase ? op.board->write(tick) : op.block->step(tick);
     const std::int64_t elapsed = timed ? monotonic_ns() - start : 0;
     if (time_ops) op.exec_time->record(elapsed);
     const char* reason = nullptr;

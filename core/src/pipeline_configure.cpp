@@ -1,6 +1,6 @@
 // Configuring each block: the context its configure() sees (parameters, models, ports), the
 // checks on what it declares, and resolving its inputs to the outputs they name.
-#include "lode/clock.hpp"
+#include "lode/sdk/clock.hpp"
 #include "lode/config_file.hpp"
 #include "lode/pipeline.hpp"
 
@@ -20,7 +20,7 @@
 #include <sstream>
 
 #include "lode/telemetry.hpp"
-#include "lode/units.hpp"
+#include "lode/sdk/units.hpp"
 #include "params_node.hpp"
 #include "pipeline_impl.hpp"
 #include "port_binder.hpp"
@@ -29,6 +29,21 @@
 namespace lode {
 
 using namespace pipeline_detail;
+
+namespace {
+
+/// The entry of the plugin's port table that port `name` is, or nullptr. "<...>" entries stand
+/// for names taken from the configuration.
+const PortSpec* port_table_entry(const PluginDescriptor& d, const std::string& name) {
+  const PortSpec* pattern = nullptr;
+  for (std::size_t i = 0; i < d.port_count; ++i) {
+    if (name == d.ports[i].name) return &d.ports[i];
+    if (d.ports[i].name[0] == '<') pattern = &d.ports[i];
+  }
+  return pattern;
+}
+
+}  // namespace
 
 // The context each block's configure() sees.
 class LoaderContext final : public ConfigureContext {
@@ -42,6 +57,7 @@ class LoaderContext final : public ConfigureContext {
   [[nodiscard]] double rate_hz() const override { return p_.rate_hz / e_.shadow_decimation; }
 
   void declare_output(OutputPort& port, const std::string& name, Elements elements) override {
+    if (!listed(name, PortDirection::out)) return;
     for (const auto& o : e_.outputs)
       if (o.name == name) {
         params_.fail("plugin " + e_.plugin_name + " declared output '" + name + "' twice");
@@ -56,6 +72,7 @@ class LoaderContext final : public ConfigureContext {
 
   void declare_input(InputPort& port, const std::string& name, Elements expected,
                      bool required) override {
+    if (!listed(name, PortDirection::in)) return;
     e_.inputs.push_back({name, std::move(expected), required, &port});
   }
 
@@ -71,18 +88,18 @@ class LoaderContext final : public ConfigureContext {
   }
 
   std::unique_ptr<PlantModel> plant_model(std::string_view key) override {
-    return p_.make_model<PlantModel>(params_, key, PluginKind::plant);
+    return p_.make_model<PlantModel>(params_, key, "plant");
   }
   std::unique_ptr<MeasurementModel> measurement_model(std::string_view key) override {
-    return p_.make_model<MeasurementModel>(params_, key, PluginKind::sensor);
+    return p_.make_model<MeasurementModel>(params_, key, "sensor");
   }
   std::unique_ptr<ProcessModel> process_model(std::string_view key) override {
-    return p_.make_model<ProcessModel>(params_, key, PluginKind::process);
+    return p_.make_model<ProcessModel>(params_, key, "process");
   }
   std::vector<std::unique_ptr<MeasurementModel>> measurement_models(std::string_view key) override {
     std::vector<std::unique_ptr<MeasurementModel>> out;
     for (const auto& name : params_.texts(key, {})) {
-      auto m = p_.make_model_named<MeasurementModel>(params_, key, name, PluginKind::sensor);
+      auto m = p_.make_model_named<MeasurementModel>(params_, key, name, "sensor");
       if (m) out.push_back(std::move(m));
     }
     if (!params_.has(key)) params_.fail(key, "missing required parameter (a list of model names)");
@@ -90,15 +107,49 @@ class LoaderContext final : public ConfigureContext {
   }
 
  private:
+  /// The port table is the one declaration of a plugin's ports: a port it does not list, or
+  /// lists the other way round, is a bug in the plugin, reported as one.
+  bool listed(const std::string& name, PortDirection direction) {
+    const PortSpec* spec = port_table_entry(*e_.plugin.descriptor, name);
+    if (!spec) {
+      params_.fail("plugin " + e_.plugin_name + " declared " + (direction == PortDirection::in ? "input" : "output") +
+                   " '" + name + "' that its port table does not list (a bug in the plugin)");
+      return false;
+    }
+    if (spec->direction != direction) {
+      params_.fail("plugin " + e_.plugin_name + " declared '" + name + "' as an " +
+                   (direction == PortDirection::in ? "input" : "output") + " but its port table lists it as an " +
+                   (direction == PortDirection::in ? "output" : "input") + " (a bug in the plugin)");
+      return false;
+    }
+    return true;
+  }
+
   Pipeline::Impl& p_;
   BlockEntry& e_;
   Params& params_;
 };
 
+/// After a successful configure(): every port the table lists without a condition was declared.
+void check_unconditional_ports(const BlockEntry& e, Params& params) {
+  const PluginDescriptor& d = *e.plugin.descriptor;
+  for (std::size_t i = 0; i < d.port_count; ++i) {
+    const PortSpec& spec = d.ports[i];
+    if (spec.condition || spec.name[0] == '<') continue;
+    const bool declared =
+        spec.direction == PortDirection::out
+            ? e.output(spec.name) != nullptr
+            : std::any_of(e.inputs.begin(), e.inputs.end(), [&](const DeclaredInput& in) { return in.name == spec.name; });
+    if (!declared)
+      params.fail(std::string("plugin ") + d.name + " did not declare " + to_string(spec.direction) + "put '" +
+                  spec.name + "', which its port table lists as always present (a bug in the plugin)");
+  }
+}
+
 template <typename M>
 std::unique_ptr<M> Pipeline::Impl::make_model_named(Params& block_params, std::string_view key,
                                                     const std::string& model_name,
-                                                    PluginKind kind) {
+                                                    const char* needed) {
   auto it = models.find(model_name);
   if (it == models.end()) {
     std::string known;
@@ -117,7 +168,7 @@ std::unique_ptr<M> Pipeline::Impl::make_model_named(Params& block_params, std::s
     block_params.fail(key, "model '" + model_name + "' is a " +
                                to_string(spec.plugin.descriptor->kind) + " (" +
                                spec.plugin.descriptor->name + "), this parameter needs a " +
-                               to_string(kind) + " model");
+                               needed + " model");
     return nullptr;
   }
   made.release();
@@ -161,7 +212,16 @@ void Pipeline::Impl::configure_block(BlockEntry& e) {
     return;
   }
   made.release();
-  e.block.reset(block);
+  e.adopt(std::unique_ptr<Block>(block));
+  // Boards, and only boards, have a write phase and a safe state.
+  if (e.is_io() != (e.board != nullptr)) {
+    error(e.where, path, std::string("plugin ") + e.plugin.descriptor->name + " is of kind " +
+                             to_string(e.plugin.descriptor->kind) +
+                             (e.board ? " but implements lode::Board (only io plugins do)"
+                                      : " but does not implement lode::Board (write phase and safe state)"));
+    e.adopt(nullptr);
+    return;
+  }
   Params params = detail::make_params(e.node, path, file, diag, kPipelineBlockKeys);
   LoaderContext ctx(*this, e, params);
   Status st;
@@ -179,6 +239,7 @@ void Pipeline::Impl::configure_block(BlockEntry& e) {
     e.configured = true;
     return;
   }
+  if (st) check_unconditional_ports(e, params);
   detail::report_unread_keys(params);
   check_documented(e.plugin, params, path);
   if (!st && params.ok()) error(e.where, path, st.message());

@@ -24,6 +24,9 @@
 
 #include "envelope.hpp"
 #include "lode/pipeline.hpp"
+#include "lode/sdk/board.hpp"
+#include "lode/sdk/estimator_state.hpp"
+#include "lode/sdk/tunables.hpp"
 #include "lode/plugin_loader.hpp"
 #include "lode/spsc_ring.hpp"
 #include "lode/telemetry.hpp"
@@ -76,6 +79,10 @@ struct BlockEntry {
   SourceLocation where;
   std::vector<InputWiring> wiring;
   std::unique_ptr<Block> block;
+  // The optional interfaces of `block`, found once when it is created (nullptr: it has none).
+  Board* board = nullptr;
+  Tunables* tunables = nullptr;
+  EstimatorState* estimator = nullptr;
   std::vector<DeclaredOutput> outputs;
   std::vector<DeclaredInput> inputs;
   bool configured = false;
@@ -94,6 +101,13 @@ struct BlockEntry {
   bool candidate = false;                ///< created by a hot swap (owned by Impl::pool)
 
   bool is_io() const { return plugin.descriptor && plugin.descriptor->kind == PluginKind::io; }
+  /// Takes the instance a plugin created and finds its optional interfaces.
+  void adopt(std::unique_ptr<Block> instance) {
+    block = std::move(instance);
+    board = dynamic_cast<Board*>(block.get());
+    tunables = dynamic_cast<Tunables*>(block.get());
+    estimator = dynamic_cast<EstimatorState*>(block.get());
+  }
   const DeclaredOutput* output(const std::string& port) const {
     for (const auto& o : outputs)
       if (o.name == port) return &o;
@@ -104,6 +118,7 @@ struct BlockEntry {
 /// A shadow role as the RT thread sees it.
 struct ShadowSlot {
   Block* block = nullptr;      ///< instance running in the shadow role
+  EstimatorState* estimator = nullptr;  ///< its estimator interface (nullptr: none)
   BlockEntry* role = nullptr;
   std::uint32_t decimation = 1;
   bool stepped_ok = false;     ///< stepped this cycle and returned ok
@@ -286,6 +301,8 @@ struct Pipeline::Impl {
   void prepare_record(BlockEntry& record, const Family& family);
   /// Bind `record`'s inputs to the sources its wiring names (arena storage).
   void bind_inputs(BlockEntry& record);
+  /// RT: point the op (role 0) or the shadow slot at record's instance and its interfaces.
+  void put_instance(Family& f, int role, BlockEntry& record) noexcept;
   /// RT: rebind ports and exchange instances of two roles of one family.
   void exchange_roles(Family& f, int role_a, int role_b) noexcept;
   /// RT: put `record` into `role` of `f`; the record that ran there goes to its staging.
@@ -298,15 +315,16 @@ struct Pipeline::Impl {
   /// Every record with a live instance (roles that own theirs, and the pool).
   std::vector<BlockEntry*> instances();
 
+  /// `needed` names the interface M in messages: "plant", "sensor" or "process".
   template <typename M>
-  std::unique_ptr<M> make_model(Params& block_params, std::string_view key, PluginKind kind) {
+  std::unique_ptr<M> make_model(Params& block_params, std::string_view key, const char* needed) {
     const std::string model_name = block_params.text(key);
     if (model_name.empty()) return nullptr;
-    return make_model_named<M>(block_params, key, model_name, kind);
+    return make_model_named<M>(block_params, key, model_name, needed);
   }
   template <typename M>
   std::unique_ptr<M> make_model_named(Params& block_params, std::string_view key,
-                                      const std::string& model_name, PluginKind kind);
+                                      const std::string& model_name, const char* needed);
 };
 
 }  // namespace lode

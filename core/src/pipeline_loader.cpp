@@ -1,6 +1,6 @@
 // Loading a pipeline: the YAML file becomes blocks, models and sections, every problem located
 // by file, line and column; nothing is returned half-configured.
-#include "lode/clock.hpp"
+#include "lode/sdk/clock.hpp"
 #include "lode/config_file.hpp"
 #include "lode/pipeline.hpp"
 
@@ -20,7 +20,7 @@
 #include <sstream>
 
 #include "lode/telemetry.hpp"
-#include "lode/units.hpp"
+#include "lode/sdk/units.hpp"
 #include "params_node.hpp"
 #include "pipeline_impl.hpp"
 #include "port_binder.hpp"
@@ -184,12 +184,10 @@ void Pipeline::Impl::parse_models(const YAML::Node& models_node) {
       auto loaded = registry->find(kv.second["plugin"].Scalar());
       if (!loaded) {
         error(detail::location_of(kv.second["plugin"], file), path + ".plugin", loaded.error());
-      } else if (loaded->descriptor->kind != PluginKind::plant &&
-                 loaded->descriptor->kind != PluginKind::sensor &&
-                 loaded->descriptor->kind != PluginKind::process) {
+      } else if (creates_block(loaded->descriptor->kind)) {
         error(detail::location_of(kv.second["plugin"], file), path + ".plugin",
-              std::string("plugin ") + loaded->descriptor->name + " is a " +
-                  to_string(loaded->descriptor->kind) + ", not a model (plant, sensor or process)");
+              std::string("plugin ") + loaded->descriptor->name + " is a block, not a model (its kind is " +
+                  to_string(loaded->descriptor->kind) + "; models are plant or sensor): declare it under `blocks:`");
       } else {
         spec.plugin = *loaded;
       }
@@ -220,8 +218,7 @@ void Pipeline::Impl::parse_blocks(const YAML::Node& blocks_node) {
       auto loaded = registry->find(e->plugin_name);
       if (!loaded) {
         error(detail::location_of(plugin, file), path + ".plugin", loaded.error());
-      } else if (loaded->descriptor->kind != PluginKind::block &&
-                 loaded->descriptor->kind != PluginKind::io) {
+      } else if (!creates_block(loaded->descriptor->kind)) {
         error(detail::location_of(plugin, file), path + ".plugin",
               std::string("plugin ") + loaded->descriptor->name + " is a " +
                   to_string(loaded->descriptor->kind) +

@@ -1,6 +1,6 @@
 // Roles and instances: shadows of a primary, families, the bindings of an instance into a
 // role, and the exchanges hot swap, promotion and a health fallback make at a cycle boundary.
-#include "lode/clock.hpp"
+#include "lode/sdk/clock.hpp"
 #include "lode/config_file.hpp"
 #include "lode/pipeline.hpp"
 
@@ -20,7 +20,7 @@
 #include <sstream>
 
 #include "lode/telemetry.hpp"
-#include "lode/units.hpp"
+#include "lode/sdk/units.hpp"
 #include "params_node.hpp"
 #include "pipeline_impl.hpp"
 #include "port_binder.hpp"
@@ -128,7 +128,7 @@ void Pipeline::Impl::prepare_record(BlockEntry& record, const Family& family) {
     if (!o.synthetic) record.staging_plan.push_back({o.port, record.staging.data() + o.offset, o.elements.size()});
   record.plans.clear();
   for (const BlockEntry* role : family.roles) record.plans.push_back(plan_for(record, *role));
-  record.layout = record.block ? record.block->state_layout() : StateLayout{};
+  record.layout = record.estimator ? record.estimator->state_layout() : StateLayout{};
 }
 
 
@@ -149,6 +149,7 @@ void Pipeline::Impl::build_families() {
       BlockEntry* role = f.roles[r];
       ShadowSlot slot;
       slot.block = role->block.get();
+      slot.estimator = role->estimator;
       slot.role = role;
       slot.decimation = role->shadow_decimation;
       const DeclaredOutput& first = primary->outputs.front();
@@ -157,7 +158,7 @@ void Pipeline::Impl::build_families() {
       slot.disagreement = arena.data() + output_offset(*role, kDisagreementPort);
       slot.disagreement_size = first.elements.size();
       slot.nis = arena.data() + output_offset(*role, kNisPort);
-      slot.nu.assign(std::max<std::size_t>(1, role->block->innovation_size()), 0.0);
+      slot.nu.assign(std::max<std::size_t>(1, role->estimator ? role->estimator->innovation_size() : 0), 0.0);
       slot.s.assign(slot.nu.size(), 0.0);
       f.shadows.push_back(std::move(slot));
     }
@@ -182,14 +183,23 @@ std::vector<BlockEntry*> Pipeline::Impl::instances() {
   return out;
 }
 
+void Pipeline::Impl::put_instance(Family& f, int role, BlockEntry& record) noexcept {
+  if (role == 0) {
+    ops[f.op].block = record.block.get();
+    return;
+  }
+  ShadowSlot& slot = f.shadows[static_cast<std::size_t>(role - 1)];
+  slot.block = record.block.get();
+  slot.estimator = record.estimator;
+}
+
 void Pipeline::Impl::exchange_roles(Family& f, int role_a, int role_b) noexcept {
   BlockEntry* a = f.roles[static_cast<std::size_t>(role_a)]->live.load(std::memory_order_relaxed);
   BlockEntry* b = f.roles[static_cast<std::size_t>(role_b)]->live.load(std::memory_order_relaxed);
   for (const auto& bind : a->plans[static_cast<std::size_t>(role_b)]) PortBinder::bind(*bind.port, bind.data, bind.size);
   for (const auto& bind : b->plans[static_cast<std::size_t>(role_a)]) PortBinder::bind(*bind.port, bind.data, bind.size);
   auto set_instance = [&](int role, BlockEntry* record) {
-    if (role == 0) ops[f.op].block = record->block.get();
-    else f.shadows[static_cast<std::size_t>(role - 1)].block = record->block.get();
+    put_instance(f, role, *record);
     f.roles[static_cast<std::size_t>(role)]->live.store(record, std::memory_order_release);
   };
   set_instance(role_a, b);
@@ -200,8 +210,7 @@ BlockEntry* Pipeline::Impl::install(Family& f, int role, BlockEntry& record) noe
   BlockEntry* old = f.roles[static_cast<std::size_t>(role)]->live.load(std::memory_order_relaxed);
   for (const auto& bind : old->staging_plan) PortBinder::bind(*bind.port, bind.data, bind.size);
   for (const auto& bind : record.plans[static_cast<std::size_t>(role)]) PortBinder::bind(*bind.port, bind.data, bind.size);
-  if (role == 0) ops[f.op].block = record.block.get();
-  else f.shadows[static_cast<std::size_t>(role - 1)].block = record.block.get();
+  put_instance(f, role, record);
   f.roles[static_cast<std::size_t>(role)]->live.store(&record, std::memory_order_release);
   return old;
 }

@@ -1,10 +1,10 @@
-#include "lode/units.hpp"
+#include "lode/sdk/units.hpp"
 
 #include <algorithm>
 #include <cctype>
 
-#include "lode/port.hpp"
-#include "lode/plugin.hpp"
+#include "lode/sdk/port.hpp"
+#include "lode/sdk/plugin.hpp"
 
 namespace lode {
 
@@ -36,17 +36,6 @@ Elements numbered_elements(const std::string& prefix, std::size_t n, const std::
   e.reserve(n);
   for (std::size_t i = 0; i < n; ++i) e.push_back({prefix + std::to_string(i), unit});
   return e;
-}
-
-const char* to_string(PluginKind kind) {
-  switch (kind) {
-    case PluginKind::block: return "block";
-    case PluginKind::io: return "io";
-    case PluginKind::plant: return "plant";
-    case PluginKind::sensor: return "sensor";
-    case PluginKind::process: return "process";
-  }
-  return "unknown";
 }
 
 }  // namespace lode

@@ -34,7 +34,7 @@ struct Loaded {
   }
   void run_op(std::size_t i) {
     auto& op = pipeline->ops()[i];
-    benchmark::DoNotOptimize(op.write_phase ? op.block->write(tick) : op.block->step(tick));
+    benchmark::DoNotOptimize(op.write_phase ? op.board->write(tick) : op.block->step(tick));
   }
 };
 

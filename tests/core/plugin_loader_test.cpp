@@ -1,6 +1,8 @@
 // The loader refuses what is not a plugin, or a plugin of another ABI, with a clear message.
+#include <cstdlib>
 #include <gtest/gtest.h>
 
+#include "lode/sdk/testing/block_host.hpp"
 #include "lode/plugin_loader.hpp"
 
 namespace {
@@ -25,6 +27,26 @@ TEST(PluginLoader, AbiMismatchNamesBothVersions) {
   EXPECT_NE(r.error().find("rebuild the plugin"), std::string::npos);
 }
 
+TEST(PluginLoader, APluginBuiltForTheLastAbiIsRefusedNamingBothVersions) {
+  lode::PluginRegistry reg(std::vector<std::string>{});
+  auto r = reg.load_file(LODE_BAD_PLUGIN_DIR "/lode-test.old_abi.so");
+  ASSERT_FALSE(r);
+  EXPECT_EQ(lode::kPluginAbiVersion, 4u) << "a new ABI: give this test plugin the one before";
+  EXPECT_NE(r.error().find("plugin ABI version 3"), std::string::npos) << r.error();
+  EXPECT_NE(r.error().find("does not match this lodestone's ABI version 4"), std::string::npos) << r.error();
+  EXPECT_NE(r.error().find("rebuild the plugin against this SDK"), std::string::npos) << r.error();
+}
+
+TEST(PluginLoader, APortOutsideThePortTableOrOneLeftOutIsRefused) {
+  ::setenv("LODE_PLUGIN_PATH", LODE_BAD_PLUGIN_DIR, 1);
+  lode::BlockHost h("test.undeclared_port", "", 100.0);
+  ::unsetenv("LODE_PLUGIN_PATH");
+  ASSERT_FALSE(h.configure());
+  const std::string why = h.diagnostics();
+  EXPECT_NE(why.find("declared output 'out' that its port table does not list"), std::string::npos) << why;
+  EXPECT_NE(why.find("did not declare output 'value'"), std::string::npos) << why;
+}
+
 TEST(PluginLoader, UnknownNameListsTheSearchPath) {
   lode::PluginRegistry reg({"/nonexistent/a", "/nonexistent/b"});
   auto r = reg.find("estimator.nothing");
@@ -39,7 +61,7 @@ TEST(PluginLoader, FindsShippedPluginsFromTheDefaultPath) {
   auto r = reg.find("estimator.glsdc");
   ASSERT_TRUE(r) << r.error();
   EXPECT_STREQ(r->descriptor->name, "estimator.glsdc");
-  EXPECT_EQ(r->descriptor->kind, lode::PluginKind::block);
+  EXPECT_EQ(r->descriptor->kind, lode::PluginKind::estimator);
   const auto listing = reg.discover_all();
   EXPECT_GE(listing.plugins.size(), 10u);
 }

@@ -26,6 +26,7 @@
 #include <fastdds/dds/subscriber/Subscriber.hpp>
 #include <fastdds/dds/topic/Topic.hpp>
 
+#include "lode/sdk/tunables.hpp"
 #include "lode/control.hpp"
 #include "lode/dds/bridge.hpp"
 #include "lode/dds/client.hpp"
@@ -119,7 +120,11 @@ struct Rig {
   [[nodiscard]] bool loaded() const { return scheduler != nullptr; }
 
   double tunable(const std::string& block, const std::string& name) const {
-    lode::Block* b = pipeline->block(block);
+    auto* b = dynamic_cast<lode::Tunables*>(pipeline->block(block));
+    if (b == nullptr) {
+      ADD_FAILURE() << block << " has no runtime parameters";
+      return 0.0;
+    }
     const auto list = b->tunables();
     for (std::size_t i = 0; i < list.size(); ++i)
       if (list[i].name == name) return b->tunable_value(i);

@@ -40,11 +40,12 @@
 #include <string>
 #include <vector>
 
+#include "lode/sdk/estimator_state.hpp"
 #include "lode/event_log.hpp"
 #include "lode/hot_swap.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
-#include "lode/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
 #include "config_text.hpp"
 
 namespace {
@@ -246,10 +247,10 @@ TEST(HealthMonitor, HealthyRunsOfTheSameLengthNeverTrip) {
 TEST(HealthInnovation, StuckHallChannelTripsInItsFirstCycleAndTheFallbackTakesOver) {
   double first_stuck_nis = 0.0;
   double a1_before = 0.0;
-  const lode::Block* tripped = nullptr;
+  const lode::EstimatorState* tripped = nullptr;
   const Outcome r = run(with_stuck_channel(kSwapConfig), 5400, 0, [&](Rig& rig) {
     const std::uint64_t k = rig.cycle - 1;
-    if (k == 0) tripped = rig.pipeline->block("kf");
+    if (k == 0) tripped = dynamic_cast<const lode::EstimatorState*>(rig.pipeline->block("kf"));
     if (k == 4999) a1_before = rig.value("stage.signals")[0];
     if (k == 5000) {
       EXPECT_EQ(rig.value("stage.signals")[0], 0.0) << "io.sim inject_stuck did not stick a1 at 0 V";

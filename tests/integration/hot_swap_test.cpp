@@ -33,11 +33,12 @@
 #include <string>
 #include <vector>
 
+#include "lode/sdk/estimator_state.hpp"
 #include "lode/event_log.hpp"
 #include "lode/hot_swap.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
-#include "lode/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
 #include "config_text.hpp"
 
 namespace {
@@ -185,7 +186,8 @@ TEST(HotSwap, ThousandSwapsKalmanHybridAt5kHzKeepTheLoopAndBoundTheJump) {
     req.params = to_hybrid ? kHybridParams : kKalmanParams;
     lode::Block* incumbent = rig.pipeline->block("kf");
     const lode::SwapReport r = rig.swap(req, [&] {
-      if (rig.pipeline->block("kf") == incumbent) incumbent->export_state(x.data(), P.data());
+      if (rig.pipeline->block("kf") == incumbent)
+        dynamic_cast<lode::EstimatorState&>(*incumbent).export_state(x.data(), P.data());
     });
     ASSERT_TRUE(r.ok) << r.message;
     ASSERT_EQ(r.jump.size(), 3u) << r.message;

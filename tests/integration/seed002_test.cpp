@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "lode/sdk/estimator_state.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
 #include "lode/scheduler.hpp"
@@ -361,8 +362,12 @@ std::vector<FilterCycle> run_cycles(const std::string& yaml, double seconds, boo
   EXPECT_TRUE(p) << diag.format();
   if (!p) return out;
   EXPECT_TRUE(p->activate());
-  lode::Block* ukf = p->block("ukf");
-  lode::Block* ekf = p->block("ekf");
+  auto* ukf = dynamic_cast<lode::EstimatorState*>(p->block("ukf"));
+  auto* ekf = dynamic_cast<lode::EstimatorState*>(p->block("ekf"));
+  if (!ukf || !ekf) {
+    ADD_FAILURE() << "the UKF and the EKF export their state";
+    return out;
+  }
   const lode::StateLayout layout = ukf->state_layout();
   EXPECT_EQ(layout.size(), 3u);
   EXPECT_TRUE(layout.covariance);

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "lode/event_log.hpp"
+#include "lode/sdk/tunables.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/telemetry.hpp"
 
@@ -71,6 +72,7 @@ class ControlService final : public CycleHook {
     std::string block;
     Block* const* slot = nullptr;  ///< the pointer the RT thread steps (changes on a swap)
     Block* instance = nullptr;
+    Tunables* interface = nullptr;  ///< the instance's runtime parameters (nullptr: none)
     std::vector<Tunable> tunables;
   };
   const Entry* find(const std::string& block) const;
@@ -92,6 +94,7 @@ class ControlService final : public CycleHook {
   enum : int { kIdle = 0, kPosted = 1, kBusy = 2, kDone = 3 };
   alignas(64) std::atomic<int> state_{kIdle};
   Block* box_block_ = nullptr;
+  Tunables* box_tunables_ = nullptr;
   Block* const* box_slot_ = nullptr;
   std::size_t box_index_ = 0;
   bool box_write_ = false;

@@ -12,10 +12,11 @@
 #include <string>
 #include <vector>
 
-#include "lode/block.hpp"
-#include "lode/diagnostics.hpp"
-#include "lode/histogram.hpp"
-#include "lode/json.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/board.hpp"
+#include "lode/sdk/diagnostics.hpp"
+#include "lode/sdk/histogram.hpp"
+#include "lode/sdk/json.hpp"
 #include "lode/plugin_loader.hpp"
 
 namespace lode {
@@ -80,6 +81,7 @@ class Pipeline {
  public:
   struct Op {
     Block* block = nullptr;
+    Board* board = nullptr;  ///< the io block's board interface: its write phase
     std::string label;  ///< "glsdc" or "stage.read" / "stage.write"
     bool write_phase = false;
     std::unique_ptr<Histogram> exec_time;

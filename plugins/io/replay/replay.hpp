@@ -23,16 +23,21 @@
 #include <string>
 #include <vector>
 
-#include "lode/block.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/board.hpp"
 
 namespace lode::plugins {
 
-class ReplayBoard final : public Block {
+class ReplayBoard final : public Block, public Board {
  public:
   Status configure(ConfigureContext& ctx) override;
   Status activate() override;
   StepStatus step(const Tick& tick) noexcept override;
   void describe(Json& out) const override;
+  /// A recording drives nothing: the command input is accepted and ignored, so the write
+  /// phase and the safe state have nothing to do.
+  StepStatus write(const Tick& /*tick*/) noexcept override { return StepStatus::ok; }
+  void drive_safe() noexcept override {}
 
   /// Rows (cycles) available; the first one is recorded cycle first_cycle().
   [[nodiscard]] std::size_t rows() const noexcept { return rows_; }

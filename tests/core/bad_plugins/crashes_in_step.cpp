@@ -6,8 +6,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "lode/block.hpp"
-#include "lode/plugin.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/plugin.hpp"
 
 namespace {
 
@@ -50,9 +50,8 @@ constexpr lode::ParamDoc kParams[] = {
     {"how", "text", "segv",
      "segv (write through a null pointer), throw (exception out of noexcept step()) or overflow (stack)"},
 };
-constexpr lode::PortDoc kPorts[] = {{"none", "-", "no ports"}};
 
 }  // namespace
 
-LODE_PLUGIN(CrashesInStep, "test.crashes_in_step", lode::PluginKind::block, "0.0.1",
-            "Test plugin: step() crashes the process at a given cycle", kParams, kPorts)
+LODE_PLUGIN(CrashesInStep, "test.crashes_in_step", lode::PluginKind::source, "0.0.1",
+            "Test plugin: step() crashes the process at a given cycle", kParams, lode::kNoPorts)

@@ -22,7 +22,10 @@
 #include <string>
 #include <vector>
 
-#include "lode/block.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/board.hpp"
+#include "lode/sdk/estimator_state.hpp"
+#include "lode/sdk/tunables.hpp"
 
 namespace lode {
 
@@ -49,6 +52,11 @@ class BlockHost {
   [[nodiscard]] std::string diagnostics() const;
   [[nodiscard]] const Tick& tick() const;
   Block& block();
+  /// The block's optional interfaces; each throws std::logic_error when the block has none
+  /// (a test that asks for one expects the plugin to implement it).
+  Tunables& tunables();
+  EstimatorState& estimator();
+  Board& board();
 
  private:
   struct Impl;

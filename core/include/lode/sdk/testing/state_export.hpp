@@ -1,4 +1,4 @@
-// Helpers for plugin tests of the estimator-state API (Block::state_layout / export_state,
+// Helpers for plugin tests of the estimator-state API (EstimatorState::state_layout / export_state,
 // used by hot swap): take a block's exported state as vectors, and check an exported
 // covariance is a usable one.
 #pragma once
@@ -10,7 +10,7 @@
 #include <cstddef>
 #include <vector>
 
-#include "lode/block.hpp"
+#include "lode/sdk/estimator_state.hpp"
 
 namespace lode::testing {
 
@@ -20,7 +20,7 @@ struct ExportedState {
 };
 
 /// The block's exported state. Elements the block does not write stay NaN, so a test sees them.
-inline ExportedState export_state_of(Block& block) {
+inline ExportedState export_state_of(const EstimatorState& block) {
   const StateLayout layout = block.state_layout();
   ExportedState e;
   e.values.assign(layout.size(), std::nan(""));

@@ -1,0 +1,26 @@
+// A plugin built against the previous SDK (ABI 3: one Block with 15 virtual methods, the
+// "block" kind, ports as free text). Only the first two fields of its descriptor are read.
+#include <cstddef>
+#include <cstdint>
+
+namespace {
+struct DescriptorAbi3 {
+  std::uint32_t abi_version;
+  std::uint32_t descriptor_size;
+  const char* name;
+  std::uint32_t kind;
+  const char* version;
+  const char* summary;
+  const void* params;
+  std::size_t param_count;
+  const void* ports;
+  std::size_t port_count;
+  void* (*create)();
+};
+}  // namespace
+
+extern "C" __attribute__((visibility("default"))) const void* lode_plugin_descriptor() {
+  static const DescriptorAbi3 d{3, sizeof(DescriptorAbi3), "filter.from_the_past", 0, "1.0.0",
+                                "built for ABI 3", nullptr, 0, nullptr, 0, nullptr};
+  return &d;
+}
