@@ -7,7 +7,7 @@
 
 #include <string>
 
-#include "lode/status.hpp"
+#include "lode/sdk/status.hpp"
 
 namespace lode::emu {
 

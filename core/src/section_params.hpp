@@ -7,8 +7,8 @@
 #include <optional>
 #include <string>
 
-#include "lode/diagnostics.hpp"
-#include "lode/params.hpp"
+#include "lode/sdk/diagnostics.hpp"
+#include "lode/sdk/params.hpp"
 #include "params_node.hpp"
 
 namespace lode::detail {

@@ -30,7 +30,7 @@
 #include <vector>
 
 #include "config_text.hpp"
-#include "lode/math/discretize.hpp"
+#include "lode/sdk/math/discretize.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
 #include "lode/scheduler.hpp"

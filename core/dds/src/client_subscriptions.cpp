@@ -6,7 +6,7 @@
 // the pipelines known from `lode/signals` every 200 ms and adds a reader for each new one;
 // a pipeline that publishes no signal and no state has no SignalInfo and is not found.
 #include "client_impl.hpp"
-#include "lode/clock.hpp"
+#include "lode/sdk/clock.hpp"
 
 namespace lode::dds::client_detail {
 
