@@ -2,28 +2,23 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include "pipeline_file.hpp"
+
 namespace lode::emu {
 
 Expected<std::unique_ptr<SimPlant>> SimPlant::open(const std::string& sim_file, const std::string& block,
                                                    const Elements& command,
                                                    const std::vector<std::string>& signal_names) {
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(sim_file);
-  } catch (const YAML::Exception& e) {
-    return Status::error(sim_file + ": " + e.what());
-  }
+  const auto loaded = load_yaml_file(sim_file);
+  if (!loaded) return Status::error(sim_file + ": " + loaded.error());
+  YAML::Node root = *loaded;  // non-const: a missing key reads as an undefined node, not an invalid one
   const YAML::Node sim_block = root["blocks"][block];
   if (!sim_block || sim_block["plugin"].as<std::string>("") != "io.sim")
     return Status::error(sim_file + " has no io.sim block named '" + block + "'");
-  YAML::Node params = YAML::Clone(sim_block);
-  params.remove("plugin");
-  params.remove("inputs");
-  YAML::Emitter params_text, models_text;
-  params_text << params;
+  YAML::Emitter models_text;
   models_text << root["models"];
   const double rate_hz = root["rate_hz"].as<double>(800.0);
-  auto host = std::make_unique<BlockHost>("io.sim", params_text.c_str(), rate_hz, models_text.c_str());
+  auto host = std::make_unique<BlockHost>("io.sim", block_params_text(sim_block), rate_hz, models_text.c_str());
   host->feed("command", command);
   if (auto st = host->configure(); !st)
     return Status::error("the io.sim block '" + block + "' of " + sim_file + " against the board's outputs:\n" +

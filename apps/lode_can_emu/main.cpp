@@ -34,6 +34,7 @@
 #include "daq_mapping.hpp"
 #include "emulator.hpp"
 #include "lode/sdk/testing/block_host.hpp"
+#include "pipeline_file.hpp"
 #include "sim_plant.hpp"
 
 namespace {
@@ -127,33 +128,15 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "lode-can-emu: --sync-watchdog-ms must be >= 0 (0: off)\n");
     return kExitConfig;
   }
-  YAML::Node board_root;
-  try {
-    board_root = YAML::LoadFile(board_file);
-  } catch (const YAML::Exception& e) {
-    std::fprintf(stderr, "lode-can-emu: %s\n", e.what());
+  auto found = lode::emu::find_block(board_file, "io.socketcan_daq", block);
+  if (!found) {
+    std::fprintf(stderr, "lode-can-emu: %s\n", found.error().c_str());
     return kExitConfig;
   }
-  YAML::Node daq;
-  for (const auto& kv : board_root["blocks"]) {
-    if (kv.second["plugin"].as<std::string>("") != "io.socketcan_daq") continue;
-    if (!block.empty() && kv.first.as<std::string>() != block) continue;
-    block = kv.first.as<std::string>();
-    daq = kv.second;
-    break;
-  }
-  if (!daq) {
-    std::fprintf(stderr, "lode-can-emu: %s has no io.socketcan_daq block%s\n", board_file.c_str(),
-                 block.empty() ? "" : (" named '" + block + "'").c_str());
-    return kExitConfig;
-  }
+  block = found->name;
+  YAML::Node daq = found->node;
   // The module's side of the mapping, parsed and checked by the plugin (never activated here).
-  YAML::Node params = YAML::Clone(daq);
-  params.remove("plugin");
-  params.remove("inputs");
-  YAML::Emitter params_text;
-  params_text << params;
-  lode::BlockHost backend("io.socketcan_daq", params_text.c_str(), 1000.0);
+  lode::BlockHost backend("io.socketcan_daq", lode::emu::block_params_text(daq), 1000.0);
   if (daq["rpdo"]) {
     lode::Elements command;
     for (const auto& pdo : daq["rpdo"])

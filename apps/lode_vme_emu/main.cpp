@@ -31,6 +31,7 @@
 #include "emulator.hpp"
 #include "lode/hal/analog.hpp"
 #include "lode/sdk/units.hpp"
+#include "pipeline_file.hpp"
 #include "regmap.hpp"
 #include "sim_plant.hpp"
 
@@ -103,30 +104,15 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "usage: lode-vme-emu BOARD.yaml --sim SIM.yaml [--block NAME] [--spin]\n");
     return kExitConfig;
   }
-  YAML::Node board_root;
-  try {
-    board_root = YAML::LoadFile(board_file);
-  } catch (const YAML::Exception& e) {
-    std::fprintf(stderr, "lode-vme-emu: %s\n", e.what());
-    return kExitConfig;
-  }
   // The board: the io.vme_pentek block (named --block, else the first).
-  BoardConfig board;
-  YAML::Node vme;
-  bool found = false;  // a default YAML::Node is a defined null: `!vme` would never be true
-  for (const auto& kv : board_root["blocks"]) {
-    if (kv.second["plugin"].as<std::string>("") != "io.vme_pentek") continue;
-    if (!block.empty() && kv.first.as<std::string>() != block) continue;
-    block = kv.first.as<std::string>();
-    vme = kv.second;
-    found = true;
-    break;
-  }
+  auto found = lode::emu::find_block(board_file, "io.vme_pentek", block);
   if (!found) {
-    std::fprintf(stderr, "lode-vme-emu: %s has no io.vme_pentek block%s\n", board_file.c_str(),
-                 block.empty() ? "" : (" named '" + block + "'").c_str());
+    std::fprintf(stderr, "lode-vme-emu: %s\n", found.error().c_str());
     return kExitConfig;
   }
+  block = found->name;
+  YAML::Node vme = found->node;
+  BoardConfig board;
   board.device = vme["device"].as<std::string>("");
   board.offset = vme["offset"].as<std::uint64_t>(0);
   // The same map as io.vme_pentek: a relative path is relative to BOARD.yaml's directory

@@ -142,6 +142,29 @@ bool convert_scalar(const YAML::Node& n, T& out) {
   return true;
 }
 
+/// A wrong element of the list `key`: counted, and reported at its own place as key[i].
+void element_error(ParamsNode& node, const std::string& key, std::size_t i, const YAML::Node& element,
+                   const std::string& expected) {
+  ++node.tree->errors;
+  node.tree->diagnostics->add(location_of(element, node.tree->file),
+                              node.path + "." + key + "[" + std::to_string(i) + "]",
+                              expected + ", got " + describe_node(element));
+}
+
+/// Every element of `list` as a T, in order; one that is not a T is reported and read as T{},
+/// so the list keeps its length and the errors name every wrong element at once.
+template <typename T>
+std::vector<T> converted_elements(ParamsNode& node, const YAML::Node& list, const std::string& key,
+                                  const std::string& expected) {
+  std::vector<T> out;
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    T v{};
+    if (!convert_scalar(list[i], v)) element_error(node, key, i, list[i], expected);
+    out.push_back(v);
+  }
+  return out;
+}
+
 }  // namespace
 
 #define LODE_PARAM_LOOKUP(key)                    \
@@ -242,7 +265,6 @@ std::string Params::choice(std::string_view key, const std::vector<std::string>&
 
 std::vector<double> Params::numbers(std::string_view key, std::optional<std::size_t> size) {
   LODE_PARAM_LOOKUP(key);
-  std::vector<double> out;
   if (!n.IsDefined() || n.IsNull()) {
     fail(key, "missing required parameter '" + k + "' (a list of numbers)");
     return std::vector<double>(size.value_or(0), 0.0);
@@ -256,16 +278,7 @@ std::vector<double> Params::numbers(std::string_view key, std::optional<std::siz
     fail(key, "expected a list of numbers, got " + describe_node(n));
     return std::vector<double>(size.value_or(0), 0.0);
   }
-  for (std::size_t i = 0; i < n.size(); ++i) {
-    double v = 0.0;
-    if (!convert_scalar(n[i], v)) {
-      ++node_->tree->errors;
-      node_->tree->diagnostics->add(location_of(n[i], node_->tree->file),
-                                    node_->path + "." + k + "[" + std::to_string(i) + "]",
-                                    "expected a finite number, got " + describe_node(n[i]));
-    }
-    out.push_back(v);
-  }
+  std::vector<double> out = converted_elements<double>(*node_, n, k, "expected a finite number");
   if (size && out.size() != *size) {
     fail(key, "expected " + std::to_string(*size) + " numbers, got " + std::to_string(out.size()));
     out.resize(*size, 0.0);
@@ -289,18 +302,7 @@ std::vector<std::int64_t> Params::integers(std::string_view key, std::vector<std
     fail(key, "expected a list of integers, got " + describe_node(n));
     return fallback;
   }
-  std::vector<std::int64_t> out;
-  for (std::size_t i = 0; i < n.size(); ++i) {
-    std::int64_t v = 0;
-    if (!convert_scalar(n[i], v)) {
-      ++node_->tree->errors;
-      node_->tree->diagnostics->add(location_of(n[i], node_->tree->file),
-                                    node_->path + "." + k + "[" + std::to_string(i) + "]",
-                                    "expected an integer, got " + describe_node(n[i]));
-    }
-    out.push_back(v);
-  }
-  return out;
+  return converted_elements<std::int64_t>(*node_, n, k, "expected an integer");
 }
 
 std::vector<std::string> Params::texts(std::string_view key, std::vector<std::string> fallback) {
@@ -314,10 +316,7 @@ std::vector<std::string> Params::texts(std::string_view key, std::vector<std::st
   std::vector<std::string> out;
   for (std::size_t i = 0; i < n.size(); ++i) {
     if (!n[i].IsScalar()) {
-      ++node_->tree->errors;
-      node_->tree->diagnostics->add(location_of(n[i], node_->tree->file),
-                                    node_->path + "." + k + "[" + std::to_string(i) + "]",
-                                    "expected a text, got " + describe_node(n[i]));
+      element_error(*node_, k, i, n[i], "expected a text");
       continue;
     }
     out.push_back(n[i].Scalar());

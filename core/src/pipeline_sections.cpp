@@ -18,17 +18,16 @@
 #include "lode/sdk/units.hpp"
 #include "params_node.hpp"
 #include "pipeline_impl.hpp"
+#include "section_params.hpp"
 
 namespace lode {
 
 using namespace pipeline_detail;
 
 void Pipeline::Impl::parse_record(const YAML::Node& node) {
-  if (!node.IsMap()) {
-    error(detail::location_of(node, file), "record", "expected a map");
-    return;
-  }
-  Params p = detail::make_params(node, "record", file, diag);
+  auto section = detail::section_params(node, "record", file, diag);
+  if (!section) return;
+  Params& p = *section;
   record_settings.flush_interval_s = p.number("flush_interval_s", 1.0);
   p.check(record_settings.flush_interval_s >= 0.05 && record_settings.flush_interval_s <= 60.0, "flush_interval_s",
           "must be 0.05..60 s (how much of the run a crash may lose)");
@@ -37,11 +36,9 @@ void Pipeline::Impl::parse_record(const YAML::Node& node) {
 }
 
 void Pipeline::Impl::parse_realtime(const YAML::Node& rt) {
-  if (!rt.IsMap()) {
-    error(detail::location_of(rt, file), "realtime", "expected a map");
-    return;
-  }
-  Params p = detail::make_params(rt, "realtime", file, diag);
+  auto section = detail::section_params(rt, "realtime", file, diag);
+  if (!section) return;
+  Params& p = *section;
   // Range-checked as read, before narrowing to int: 4294967376 must not become 80.
   const std::int64_t priority = p.integer("priority", 0);
   p.check(priority >= 0 && priority <= 99, "priority",
@@ -67,11 +64,9 @@ void Pipeline::Impl::parse_realtime(const YAML::Node& rt) {
 
 void Pipeline::Impl::parse_monitor(const YAML::Node& m) {
   if (!m) return;
-  if (!m.IsMap()) {
-    error(detail::location_of(m, file), "monitor", "expected a map");
-    return;
-  }
-  Params p = detail::make_params(m, "monitor", file, diag);
+  auto section = detail::section_params(m, "monitor", file, diag);
+  if (!section) return;
+  Params& p = *section;
   auto ref = [&](const char* key) -> std::optional<SignalRef> {
     if (!p.has(key)) {
       p.text(key, "");

@@ -17,6 +17,7 @@
 #include "lode/sdk/units.hpp"
 #include "params_node.hpp"
 #include "pipeline_impl.hpp"
+#include "section_params.hpp"
 
 namespace lode {
 
@@ -47,11 +48,9 @@ std::string resolve_relative(const std::string& path, const std::string& config_
 
 void Pipeline::Impl::parse_telemetry(const YAML::Node& t) {
   if (!t) return;
-  if (!t.IsMap()) {
-    error(detail::location_of(t, file), "telemetry", "expected a map");
-    return;
-  }
-  Params p = detail::make_params(t, "telemetry", file, diag);
+  auto section = detail::section_params(t, "telemetry", file, diag);
+  if (!section) return;
+  Params& p = *section;
   TelemetrySpec& spec = telemetry;
   spec.enabled = true;
   const auto domain = p.integer("domain", 0);

@@ -34,6 +34,23 @@ struct Slicot {
   int info = -999;
 };
 
+/// A constant-acceleration axis sampled at period T (Kawato (2005) eq. 4.41's model):
+/// state [position, velocity, acceleration], driven by white jerk through `ups`, position
+/// measured by `h`.
+struct ConstantAccelerationAxis {
+  Matrix phi = Matrix(3, 3);
+  Matrix ups = Matrix(3, 1);
+  Matrix h = Matrix(1, 3);
+};
+
+ConstantAccelerationAxis constant_acceleration_axis(double T) {
+  ConstantAccelerationAxis axis;
+  axis.phi << 1, T, T * T / 2, 0, 1, T, 0, 0, 1;
+  axis.ups << T * T * T / 6, T * T / 2, T;
+  axis.h << 1, 0, 0;
+  return axis;
+}
+
 /// X of P = A'PA - (A'PB + N)(R + B'PB)^-1 (B'PA + N') + Q by SB02OD (stable eigenvalues first).
 Slicot sb02od(const Matrix& A, const Matrix& B, const Matrix& Q, const Matrix& R, const Matrix* N = nullptr) {
   const int n = static_cast<int>(A.rows());
@@ -163,15 +180,9 @@ std::vector<Problem> problems() {
     out.push_back(p);
   }
   {  // 2. Kawato (2005) CA Kalman axis as the dual DARE: r = 2.2e-10 m^2, q = 100 m^2/s^6, 800 Hz.
-    const double T = 1.0 / 800.0;
-    Matrix phi(3, 3);
-    phi << 1, T, T * T / 2, 0, 1, T, 0, 0, 1;
-    Matrix ups(3, 1);
-    ups << T * T * T / 6, T * T / 2, T;
-    Matrix h(1, 3);
-    h << 1, 0, 0;
-    out.push_back({"Kawato CA Kalman axis (dual)", phi.transpose(), h.transpose(), 100.0 * ups * ups.transpose(),
-                   Matrix::Constant(1, 1, 2.2e-10), {}, 1e-8});
+    const ConstantAccelerationAxis ca = constant_acceleration_axis(1.0 / 800.0);
+    out.push_back({"Kawato CA Kalman axis (dual)", ca.phi.transpose(), ca.h.transpose(),
+                   100.0 * ca.ups * ca.ups.transpose(), Matrix::Constant(1, 1, 2.2e-10), {}, 1e-8});
   }
   {  // 3. Silva-Rivas & Kim horizontal LQ: surrogate B_h,acc, Q_hor, R = I, 800 Hz.
     Matrix b_acc(3, 3);
@@ -338,17 +349,13 @@ TEST(RiccatiErrors, ExplainWhyThereIsNoSolution) {
 TEST(RiccatiKalman, SteadyStateMatchesEstimatorKalman) {
   // Kawato (2005) with r fitted to Tables IV/V: q = 100 m^2/s^6, r = 2.2e-10 m^2 at 800 Hz:
   // K ~ [0.1968, 17.24, 755.3].
-  const double T = 1.0 / 800.0;
   const double q = 100.0;
   const double r = 2.2e-10;
-  Matrix phi(3, 3);
-  phi << 1, T, T * T / 2, 0, 1, T, 0, 0, 1;
-  Matrix ups(3, 1);
-  ups << T * T * T / 6, T * T / 2, T;
-  Matrix H(1, 3);
-  H << 1, 0, 0;
+  const ConstantAccelerationAxis ca = constant_acceleration_axis(1.0 / 800.0);
+  const Matrix& phi = ca.phi;
+  const Matrix& ups = ca.ups;
   auto kalman =
-      lode::math::steady_state_kalman(phi, H, q * ups * ups.transpose(), Matrix::Constant(1, 1, r));
+      lode::math::steady_state_kalman(phi, ca.h, q * ups * ups.transpose(), Matrix::Constant(1, 1, r));
   ASSERT_TRUE(kalman.has_value()) << kalman.error();
   const Matrix& K = kalman->K;
   std::printf("steady_state_kalman K = [%.6g, %.6g, %.6g]\n", K(0, 0), K(1, 0), K(2, 0));

@@ -150,6 +150,21 @@ std::unique_ptr<Client> make_client(int domain, const std::string& name) {
   return std::move(*client);
 }
 
+/// A pipeline with its bridge running (`extra_telemetry` appended to its telemetry: section)
+/// and a client named `client_name`, on a DDS domain of their own.
+struct PipelineAndClient {
+  const int domain = lode::testing::private_dds_domain();
+  Rig rig;
+  std::unique_ptr<Client> client;  // after the rig: destroyed before its bridge stops
+
+  PipelineAndClient(const std::string& extra_telemetry, const std::string& client_name)
+      : rig(pipeline_yaml(domain, extra_telemetry)) {
+    if (rig.ok()) client = make_client(domain, client_name);
+  }
+  /// Both are up (each reports its own failure).
+  [[nodiscard]] bool ok() const { return rig.ok() && client != nullptr; }
+};
+
 template <typename Predicate>
 bool wait_for(Predicate done, std::chrono::milliseconds timeout) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
@@ -247,12 +262,11 @@ TEST(Participant, OptionsFromEnvironment) {
 // --- data ---------------------------------------------------------------------------------
 
 TEST(Bridge, EverySampleArrivesInOrderWithMetadata) {
-  const int kDomain = lode::testing::private_dds_domain();
   constexpr std::uint64_t kCycles = 10000;
-  Rig rig(pipeline_yaml(kDomain, "  history: 2048\n"));
-  ASSERT_TRUE(rig.ok());
-  auto client = make_client(kDomain, "lode-test-client");
-  ASSERT_TRUE(client);
+  PipelineAndClient session("  history: 2048\n", "lode-test-client");
+  ASSERT_TRUE(session.ok());
+  Rig& rig = session.rig;
+  auto& client = session.client;
 
   auto meta = client->resolve("wobble.out", 10s);
   ASSERT_TRUE(meta) << meta.error();
@@ -546,11 +560,10 @@ TEST(Bridge, StateTopicCarriesPoseAndCovariance) {
 // --- commands -----------------------------------------------------------------------------
 
 TEST(Commands, SetGetAndPreciseErrors) {
-  const int kDomain = lode::testing::private_dds_domain();
-  Rig rig(pipeline_yaml(kDomain, "  commands: {enabled: true}\n"));
-  ASSERT_TRUE(rig.ok());
-  auto client = make_client(kDomain, "console");
-  ASSERT_TRUE(client);
+  PipelineAndClient session("  commands: {enabled: true}\n", "console");
+  ASSERT_TRUE(session.ok());
+  Rig& rig = session.rig;
+  auto& client = session.client;
 
   auto reply = client->command("ddsdemo", request("set", "wobble", "amplitude.x", "0.002"), 10s);
   ASSERT_TRUE(reply) << reply.error();
@@ -615,11 +628,10 @@ TEST(Commands, SetGetAndPreciseErrors) {
 }
 
 TEST(Commands, RefusedParticipantIsAnsweredCountedAndLogged) {
-  const int kDomain = lode::testing::private_dds_domain();
-  Rig rig(pipeline_yaml(kDomain, "  commands: {enabled: true, allow_participants: [console]}\n"));
-  ASSERT_TRUE(rig.ok());
-  auto intruder = make_client(kDomain, "intruder");
-  ASSERT_TRUE(intruder);
+  PipelineAndClient session("  commands: {enabled: true, allow_participants: [console]}\n", "intruder");
+  ASSERT_TRUE(session.ok());
+  Rig& rig = session.rig;
+  auto& intruder = session.client;
   auto reply = intruder->command("ddsdemo", request("set", "wobble", "amplitude.x", "5"), 10s);
   ASSERT_TRUE(reply) << reply.error();
   EXPECT_FALSE(reply->ok);
@@ -629,7 +641,7 @@ TEST(Commands, RefusedParticipantIsAnsweredCountedAndLogged) {
   EXPECT_TRUE(rig.has_event("command_refused", "participant 'intruder'"));
   EXPECT_FALSE(rig.has_event("parameter", "amplitude.x"));
 
-  auto console = make_client(kDomain, "console");
+  auto console = make_client(session.domain, "console");
   ASSERT_TRUE(console);
   reply = console->command("ddsdemo", request("set", "wobble", "amplitude.x", "0.004"), 10s);
   ASSERT_TRUE(reply) << reply.error();
@@ -640,11 +652,10 @@ TEST(Commands, RefusedParticipantIsAnsweredCountedAndLogged) {
 }
 
 TEST(Commands, RefusedHost) {
-  const int kDomain = lode::testing::private_dds_domain();
-  Rig rig(pipeline_yaml(kDomain, "  commands: {enabled: true, allow_hosts: [10.255.255.1]}\n"));
-  ASSERT_TRUE(rig.ok());
-  auto client = make_client(kDomain, "console");
-  ASSERT_TRUE(client);
+  PipelineAndClient session("  commands: {enabled: true, allow_hosts: [10.255.255.1]}\n", "console");
+  ASSERT_TRUE(session.ok());
+  Rig& rig = session.rig;
+  auto& client = session.client;
   auto reply = client->command("ddsdemo", request("set", "wobble", "amplitude.x", "5"), 10s);
   ASSERT_TRUE(reply) << reply.error();
   EXPECT_FALSE(reply->ok);
@@ -656,11 +667,11 @@ TEST(Commands, RefusedHost) {
 }
 
 TEST(Commands, LoopbackHostAllowed) {
-  const int kDomain = lode::testing::private_dds_domain();
-  Rig rig(pipeline_yaml(kDomain, "  commands: {enabled: true, allow_hosts: [127.0.0.1], allow_participants: [console]}\n"));
-  ASSERT_TRUE(rig.ok());
-  auto client = make_client(kDomain, "console");
-  ASSERT_TRUE(client);
+  PipelineAndClient session("  commands: {enabled: true, allow_hosts: [127.0.0.1], allow_participants: [console]}\n",
+                            "console");
+  ASSERT_TRUE(session.ok());
+  Rig& rig = session.rig;
+  auto& client = session.client;
   auto reply = client->command("ddsdemo", request("set", "wobble", "amplitude.x", "0.003"), 10s);
   ASSERT_TRUE(reply) << reply.error();
   EXPECT_TRUE(reply->ok) << reply->message;

@@ -103,6 +103,18 @@ std::vector<T> take_all(fdds::DataReader* reader) {
   return samples;
 }
 
+/// Takes what `reader` receives into `into` until something has arrived, for at most
+/// `timeout`; false if nothing did.
+template <typename T>
+bool take_some_within(fdds::DataReader* reader, std::vector<T>& into, Clock::duration timeout) {
+  return wait_until(
+      [&] {
+        for (auto& sample : take_all<T>(reader)) into.push_back(sample);
+        return !into.empty();
+      },
+      timeout);
+}
+
 lode::msg::Command make_command(const std::string& client, std::uint64_t id) {
   lode::msg::Command command;
   command.client(client);
@@ -336,12 +348,7 @@ TEST_F(SecurityTest, ConsoleCommandReachesStageAndReplyReachesConsole) {
   lode::msg::Command command = make_command("console", 7);
   ASSERT_EQ(console_commands->write(&command), true);
   std::vector<lode::msg::Command> received;
-  ASSERT_TRUE(wait_until(
-      [&] {
-        for (auto& c : take_all<lode::msg::Command>(stage_commands)) received.push_back(c);
-        return !received.empty();
-      },
-      10s));
+  ASSERT_TRUE(take_some_within(stage_commands, received, 10s));
   ASSERT_EQ(received.size(), 1u);
   EXPECT_EQ(received[0].client(), "console");
   EXPECT_EQ(received[0].id(), 7u);
@@ -354,12 +361,7 @@ TEST_F(SecurityTest, ConsoleCommandReachesStageAndReplyReachesConsole) {
   reply.message("running");
   ASSERT_EQ(stage_replies->write(&reply), true);
   std::vector<lode::msg::Reply> replies;
-  ASSERT_TRUE(wait_until(
-      [&] {
-        for (auto& r : take_all<lode::msg::Reply>(console_replies)) replies.push_back(r);
-        return !replies.empty();
-      },
-      10s));
+  ASSERT_TRUE(take_some_within(console_replies, replies, 10s));
   EXPECT_EQ(replies[0].id(), 7u);
   EXPECT_EQ(replies[0].message(), "running");
 }
@@ -382,12 +384,7 @@ TEST_F(SecurityTest, ObserverReadsTelemetryButCannotCommand) {
   sample.values({1.5, -2.5});
   ASSERT_EQ(stage_telemetry->write(&sample), true);
   std::vector<lode::msg::SignalSample> samples;
-  ASSERT_TRUE(wait_until(
-      [&] {
-        for (auto& s : take_all<lode::msg::SignalSample>(observer_telemetry)) samples.push_back(s);
-        return !samples.empty();
-      },
-      10s));
+  ASSERT_TRUE(take_some_within(observer_telemetry, samples, 10s));
   EXPECT_EQ(samples[0].cycle(), 42u);
   EXPECT_EQ(samples[0].values(), (std::vector<double>{1.5, -2.5}));
 

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
 
 #include <fstream>
 #include <sstream>
@@ -16,6 +17,13 @@ inline std::string read_file(const std::string& path) {
   std::stringstream text;
   text << in.rdbuf();
   return text.str();
+}
+
+/// An edited YAML tree as the text a pipeline is loaded from.
+inline std::string emit(const YAML::Node& root) {
+  YAML::Emitter out;
+  out << root;
+  return out.c_str();
 }
 
 /// config/NAME of the source tree.

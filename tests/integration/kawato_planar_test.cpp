@@ -8,20 +8,22 @@
 #include <yaml-cpp/yaml.h>
 
 #include <array>
-#include <atomic>
 #include <cmath>
-#include <fstream>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "analysis.hpp"
+#include "config_text.hpp"
 #include "kawato_reference_model.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
 #include "lode/scheduler.hpp"
+#include "tapped_run.hpp"
 
 namespace {
+
+using lode::test::emit;
+using lode::test::read_file;
 
 const std::string kConfig = LODE_SOURCE_DIR "/config/kawato_planar.yaml";
 constexpr double kPeriod = 1.0 / 800.0;
@@ -59,19 +61,6 @@ struct Trace {
   std::string fault;
 };
 
-std::string read_file(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-std::string emit(const YAML::Node& root) {
-  YAML::Emitter out;
-  out << root;
-  return out.c_str();
-}
-
 Trace run(const std::string& yaml, double seconds) {
   lode::PluginRegistry registry;
   lode::Diagnostics diag;
@@ -80,28 +69,18 @@ Trace run(const std::string& yaml, double seconds) {
   Trace tr;
   if (!p) return tr;
   EXPECT_TRUE(p->activate());
-  std::vector<lode::SignalRef> signals;
-  for (const char* name : {"stage.truth", "ref.out", "glsdc.pose", "ctrl.out", "glsdc.covariance"})
-    signals.push_back(*p->signal(name));
-  lode::SignalTap tap(signals, 1 << 12);
-  lode::SimulatedClock clock;
-  lode::EventLog events;
-  lode::Scheduler sched(*p, clock, events);
-  sched.add_tap(&tap);
-  std::vector<double> rows;
-  std::atomic<bool> stop{false};
-  const auto result = sched.run(static_cast<std::uint64_t>(seconds * p->rate_hz()), stop,
-                                [&] { tap.drain(rows); });
-  tr.faulted = result.faulted;
-  tr.fault = result.fault;
+  const lode::test::TappedRun run =
+      lode::test::run_tapped(*p, {"stage.truth", "ref.out", "glsdc.pose", "ctrl.out", "glsdc.covariance"},
+                             static_cast<std::uint64_t>(seconds * p->rate_hz()), 1 << 12);
+  tr.faulted = run.faulted;
+  tr.fault = run.fault;
   tr.hold_start = p->monitor().hold_start_s;
   tr.hold_end = p->monitor().hold_end_s;
   tr.settle_band = p->monitor().settle_band;
-  const std::size_t stride = tap.stride();
-  for (std::size_t k = 0; k + stride <= rows.size(); k += stride) {
-    tr.t.push_back(rows[k + 1]);
+  for (std::size_t k = 0; k < run.size(); ++k) {
+    tr.t.push_back(run.time_s(k));
     auto get = [&](std::size_t sig) {
-      const double* v = &rows[k + tap.column(sig)];
+      const double* v = run.values(k, sig);
       return std::array<double, 3>{v[0], v[1], v[2]};
     };
     tr.truth.push_back(get(0));
@@ -109,7 +88,7 @@ Trace run(const std::string& yaml, double seconds) {
     tr.glsdc.push_back(get(2));
     tr.force.push_back(get(3));
     std::array<double, 9> r{};
-    std::copy_n(&rows[k + tap.column(4)], 9, r.begin());
+    std::copy_n(run.values(k, 4), 9, r.begin());
     tr.covariance.push_back(r);
   }
   p->deactivate();
@@ -126,6 +105,21 @@ const lode::Json& at(const lode::Json& j, const std::string& key) {
   const lode::Json* v = j.find(key);
   if (!v) throw std::runtime_error("describe() has no '" + key + "'");
   return *v;
+}
+
+/// describe() of the shipped pipeline, loaded as `lode describe` loads it (a fatal failure,
+/// and `described` left null, when it does not load).
+void describe_shipped(lode::Json& described) {
+  lode::PluginRegistry registry;
+  lode::Diagnostics diag;
+  auto p = lode::Pipeline::load_file(kConfig, registry, diag);
+  ASSERT_TRUE(p) << diag.format();
+  described = p->describe();
+}
+
+/// What the controller block derives per axis (its D(z) among it).
+const std::vector<lode::Json>& controller_axes(const lode::Json& described) {
+  return at(at(at(at(described, "blocks"), "ctrl"), "derived"), "axes").elements();
 }
 
 /// The three runs every check needs, all made from one configuration.
@@ -409,12 +403,9 @@ TEST(KawatoPlanar, ShippedConfigurationIsTheThesisDesign) {
     EXPECT_EQ(ctrl["discretization"].as<std::string>(), "matched");
   }
   // And the D(z) the model computes is the one the controller plugin runs.
-  lode::PluginRegistry registry;
-  lode::Diagnostics diag;
-  auto p = lode::Pipeline::load_file(kConfig, registry, diag);
-  ASSERT_TRUE(p) << diag.format();
-  const lode::Json d = p->describe();
-  const auto& axes = at(at(at(at(d, "blocks"), "ctrl"), "derived"), "axes").elements();
+  lode::Json d;
+  ASSERT_NO_FATAL_FAILURE(describe_shipped(d));
+  const auto& axes = controller_axes(d);
   for (std::size_t a = 0; a < 3; ++a) {
     const auto ours = kawato_model::matched_pole_zero(kDesign[a].controller_gain, kPeriod);
     const lode::Json& z = at(axes[a], "z_domain");
@@ -605,12 +596,9 @@ TEST(KawatoPlanar, TraverseWithThirdSensorStaysWellConditioned) {
 
 
 TEST(KawatoPlanar, DescribeGivesEq449And451FromTheSDomainDesign) {
-  lode::PluginRegistry registry;
-  lode::Diagnostics diag;
-  auto p = lode::Pipeline::load_file(kConfig, registry, diag);
-  ASSERT_TRUE(p) << diag.format();
-  const lode::Json d = p->describe();
-  const auto& axes = at(at(at(at(d, "blocks"), "ctrl"), "derived"), "axes").elements();
+  lode::Json d;
+  ASSERT_NO_FATAL_FAILURE(describe_shipped(d));
+  const auto& axes = controller_axes(d);
   ASSERT_EQ(axes.size(), 3u);
   const std::vector<double> printed_num = {1.0, -1.9773, 0.977428}, printed_den = {1.0, -1.2423, 0.2423};
   const double printed_gain[3] = {2.236e5, 2.236e5, 4.155e3};

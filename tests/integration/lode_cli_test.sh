@@ -3,29 +3,20 @@
 set -u
 LODE=$1
 SRC=$2
-TMP=$(mktemp -d)
-trap 'rm -rf "$TMP"' EXIT
-export XDG_RUNTIME_DIR=$TMP/run && mkdir -m 700 "$XDG_RUNTIME_DIR"  # our own command sockets
-fail=0
-check() {  # name expected_rc actual_rc
-  if [ "$2" != "$3" ]; then echo "FAIL: $1: exit code $3, expected $2"; fail=1; else echo "ok: $1"; fi
-}
-contains() {  # name file pattern
-  if grep -qE "$3" "$2"; then echo "ok: $1"; else echo "FAIL: $1: no /$3/ in:"; cat "$2"; fail=1; fi
-}
+source "$(dirname "$0")/test_lib.sh"  # TMP, our own command sockets, check_rc, contains
 
-"$LODE" check "$SRC/config/kawato_planar.yaml" >"$TMP/check.out" 2>&1; check "check valid" 0 $?
+"$LODE" check "$SRC/config/kawato_planar.yaml" >"$TMP/check.out" 2>&1; check_rc "check valid" 0 $?
 contains "check lists the cycle order" "$TMP/check.out" "stage.read glsdc kf ref ctrl stage.write"
 
-"$LODE" describe "$SRC/config/kawato_planar.yaml" >"$TMP/describe.json" 2>&1; check "describe" 0 $?
+"$LODE" describe "$SRC/config/kawato_planar.yaml" >"$TMP/describe.json" 2>&1; check_rc "describe" 0 $?
 contains "describe has derived controller" "$TMP/describe.json" '"derived"'
 
 sed 's/plugin: estimator.glsdc/plugin: estimator.glsdx/' "$SRC/config/kawato_planar.yaml" >"$TMP/bad.yaml"
-"$LODE" run "$TMP/bad.yaml" >"$TMP/bad.out" 2>&1; check "run invalid config" 2 $?
+"$LODE" run "$TMP/bad.yaml" >"$TMP/bad.out" 2>&1; check_rc "run invalid config" 2 $?
 contains "invalid config names file:line:column" "$TMP/bad.out" "bad.yaml:[0-9]+:[0-9]+: blocks.glsdc.plugin: no plugin named 'estimator.glsdx'"
 
 "$LODE" run "$SRC/config/kawato_planar.yaml" --duration 1.5 --summary-json "$TMP/summary.json" >"$TMP/run.out" 2>&1
-check "run sim" 0 $?
+check_rc "run sim" 0 $?
 contains "summary printed" "$TMP/run.out" "position noise std"
 contains "summary json result" "$TMP/summary.json" '"result": "completed"'
 contains "summary json steps" "$TMP/summary.json" '"rise_time_s"'
@@ -34,8 +25,7 @@ contains "summary json steps" "$TMP/summary.json" '"rise_time_s"'
 # simulated clock: deterministic). kawato_planar_test checks these figures against the
 # design's model; here the CLI's own summary must carry them, to the digits printed.
 "$LODE" run "$SRC/config/kawato_planar.yaml" --quiet --no-telemetry --summary-json "$TMP/demo.json" >/dev/null 2>&1
-check "run the demo" 0 $?
-PY=python3; [ -x /usr/bin/python3 ] && PY=/usr/bin/python3
+check_rc "run the demo" 0 $?
 "$PY" - "$TMP/demo.json" <<'CHECK' && echo "ok: the demo's summary is the README's table" || { echo "FAIL: demo summary vs README"; fail=1; }
 import json, sys
 s = json.load(open(sys.argv[1]))
@@ -60,7 +50,7 @@ sed '0,/- { zeros_s: .*gain: 4\.09e5, discretization: matched }/s//- { num_z: [1
   "$SRC/config/kawato_planar.yaml" >"$TMP/fault.yaml"
 grep -q "den_z: \[1.0, -3.0\]" "$TMP/fault.yaml" || { echo "FAIL: test setup (sed)"; exit 1; }
 "$LODE" run "$TMP/fault.yaml" --duration 3 --summary-json "$TMP/fault.json" >"$TMP/fault.out" 2>&1
-check "runtime fault exit code" 1 $?
+check_rc "runtime fault exit code" 1 $?
 contains "fault reported" "$TMP/fault.out" "FAULT: .*driven safe"
 contains "fault in summary" "$TMP/fault.json" '"result": "fault"'
 
@@ -70,9 +60,9 @@ sed 's/adc_range_v: 10/adc_range_v: 2/' "$SRC/config/kawato_planar.yaml" >"$TMP/
 contains "rt_log warning printed" "$TMP/clip.out" "stage cycle 0\] ADC saturated on [0-9]+ channel"
 contains "rt_log warning in events" "$TMP/clip.json" '"kind": "warning"'
 
-"$LODE" frobnicate >"$TMP/usage.out" 2>&1; check "unknown command" 2 $?
-"$LODE" run "$SRC/config/kawato_planar.yaml" --clock wall >"$TMP/clock.out" 2>&1; check "bad --clock" 2 $?
-"$LODE" plugins >"$TMP/plugins.out" 2>&1; check "plugins" 0 $?
+"$LODE" frobnicate >"$TMP/usage.out" 2>&1; check_rc "unknown command" 2 $?
+"$LODE" run "$SRC/config/kawato_planar.yaml" --clock wall >"$TMP/clock.out" 2>&1; check_rc "bad --clock" 2 $?
+"$LODE" plugins >"$TMP/plugins.out" 2>&1; check_rc "plugins" 0 $?
 contains "plugins lists glsdc" "$TMP/plugins.out" "estimator.glsdc"
 
 if [ $fail -ne 0 ]; then echo "lode_cli_test: FAILED"; exit 1; fi

@@ -12,37 +12,26 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <cmath>
 #include <cstdint>
-#include <fstream>
 #include <limits>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "lode/sdk/estimator_state.hpp"
+#include "config_text.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
 #include "lode/scheduler.hpp"
+#include "tapped_run.hpp"
 
 namespace {
 
+using lode::test::emit;
+using lode::test::read_file;
+
 const std::string kConfig = LODE_SOURCE_DIR "/config/suspension_ukf.yaml";
 constexpr double kDt = 0.5e-3;
-
-std::string read_file(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-std::string emit(const YAML::Node& root) {
-  YAML::Emitter out;
-  out << root;
-  return out.c_str();
-}
 
 const lode::Json& at(const lode::Json& j, const std::string& key) {
   const lode::Json* v = j.find(key);
@@ -92,33 +81,19 @@ Trace run(const std::string& yaml, double seconds) {
   if (!p) return tr;
   tr.configured = true;
   EXPECT_TRUE(p->activate());
-  const auto truth = *p->signal("stage.plant_state");
-  const auto ukf = *p->signal("ukf.state");
-  const auto ekf = *p->signal("ekf.state");
-  const auto direct = *p->signal("direct.gap");
-  const auto ref = *p->signal("ref.out");
-  const auto command = *p->signal("ctrl.out");
-  lode::SignalTap tap({truth, ukf, ekf, direct, ref, command}, 1 << 14);
-  lode::SimulatedClock clock;
-  lode::EventLog events;
-  lode::Scheduler sched(*p, clock, events);
-  sched.add_tap(&tap);
-  std::vector<double> rows;
-  std::atomic<bool> stop{false};
-  const auto result =
-      sched.run(static_cast<std::uint64_t>(std::llround(seconds * p->rate_hz())), stop, [&] { tap.drain(rows); });
-  tap.drain(rows);
-  tr.faulted = result.faulted;
-  tr.fault = result.fault;
-  const std::size_t stride = tap.stride();
-  for (std::size_t k = 0; k + stride <= rows.size(); k += stride) {
-    tr.t.push_back(rows[k + 1]);
-    tr.truth.push_back(rows[k + tap.column(0)]);
-    tr.ukf.push_back(rows[k + tap.column(1)]);
-    tr.ekf.push_back(rows[k + tap.column(2)]);
-    tr.direct.push_back(rows[k + tap.column(3)]);
-    tr.ref.push_back(rows[k + tap.column(4)]);
-    tr.command.push_back(rows[k + tap.column(5)]);
+  const lode::test::TappedRun run =
+      lode::test::run_tapped(*p, {"stage.plant_state", "ukf.state", "ekf.state", "direct.gap", "ref.out", "ctrl.out"},
+                             static_cast<std::uint64_t>(std::llround(seconds * p->rate_hz())), 1 << 14);
+  tr.faulted = run.faulted;
+  tr.fault = run.fault;
+  for (std::size_t k = 0; k < run.size(); ++k) {
+    tr.t.push_back(run.time_s(k));
+    tr.truth.push_back(*run.values(k, 0));
+    tr.ukf.push_back(*run.values(k, 1));
+    tr.ekf.push_back(*run.values(k, 2));
+    tr.direct.push_back(*run.values(k, 3));
+    tr.ref.push_back(*run.values(k, 4));
+    tr.command.push_back(*run.values(k, 5));
   }
   p->deactivate();
   return tr;

@@ -21,23 +21,25 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <cmath>
 #include <complex>
 #include <cstdio>
-#include <fstream>
 #include <map>
 #include <numbers>
-#include <sstream>
 #include <string>
 #include <vector>
 
+#include "config_text.hpp"
 #include "lode/sdk/math/discretize.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
 #include "lode/scheduler.hpp"
+#include "tapped_run.hpp"
 
 namespace {
+
+using lode::test::emit;
+using lode::test::read_file;
 
 const std::string kConfig = LODE_SOURCE_DIR "/config/maglev6_hybrid.yaml";
 constexpr double kRateHz = 800.0;
@@ -46,13 +48,6 @@ constexpr double kHoldEnd = 1.5;
 constexpr int kSeeds = 5;
 constexpr std::array<double, 4> kPaperWeights = {0.0, 0.3, 0.8, 1.0};
 const char* kAxes[6] = {"x", "y", "theta_z", "z", "theta_x", "theta_y"};
-
-std::string read_file(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
 
 /// The configurations R1-R4 of the paper's Figs. 3-6 (what feeds the LQ).
 enum class Chain { lq_only, dkf_only, notch_only, notch_dkf };
@@ -140,9 +135,7 @@ std::string variant_yaml(const Variant& v) {
     kf["inputs"]["measurement"] = measured;
     blocks["kalman"] = kf;
   }
-  YAML::Emitter out;
-  out << root;
-  return out.c_str();
+  return emit(root);
 }
 
 struct Trace {
@@ -170,26 +163,15 @@ Trace run(const Variant& v, bool with_describe = false) {
   if (!p) return tr;
   if (with_describe) tr.describe = p->describe();
   EXPECT_TRUE(p->activate());
-  std::vector<lode::SignalRef> refs;
-  for (const auto& n : names) refs.push_back(*p->signal(n));
-  lode::SignalTap tap(refs, 1 << 15);
-  lode::SimulatedClock clock;
-  lode::EventLog events;
-  lode::Scheduler sched(*p, clock, events);
-  sched.add_tap(&tap);
-  std::vector<double> rows;
-  std::atomic<bool> stop{false};
-  const auto result =
-      sched.run(static_cast<std::uint64_t>(v.duration_s * kRateHz + 0.5), stop, [&] { tap.drain(rows); });
-  tap.drain(rows);
-  tr.faulted = result.faulted;
-  tr.fault = result.fault;
-  const std::size_t stride = tap.stride();
-  for (std::size_t k = 0; k + stride <= rows.size(); k += stride) {
-    tr.t.push_back(rows[k + 1]);
+  const lode::test::TappedRun run =
+      lode::test::run_tapped(*p, names, static_cast<std::uint64_t>(v.duration_s * kRateHz + 0.5), 1 << 15);
+  tr.faulted = run.faulted;
+  tr.fault = run.fault;
+  for (std::size_t k = 0; k < run.size(); ++k) {
+    tr.t.push_back(run.time_s(k));
     for (std::size_t s = 0; s < names.size(); ++s) {
       std::array<double, 6> e{};
-      for (std::size_t i = 0; i < 6; ++i) e[i] = rows[k + tap.column(s) + i];
+      std::copy_n(run.values(k, s), 6, e.begin());
       tr.signal[names[s]].push_back(e);
     }
   }

@@ -22,6 +22,18 @@ source "$(dirname "$0")/test_lib.sh"
 source "$(dirname "$0")/vme_lib.sh"
 vme_config "$TMP/vme.yaml"
 
+# start_mid_run CONFIG OUT WHAT [ARGS...]: a 60 s `lode run CONFIG ARGS` in the background
+# ($RUN, output in OUT), checked to be still running a second later, before WHAT is done to it.
+start_mid_run() {
+  local config=$1 out=$2 what=$3
+  shift 3
+  "$LODE" run "$config" --no-telemetry --no-local-control --quiet "$@" >"$out" 2>&1 &
+  RUN=$!
+  PIDS+=($RUN)
+  sleep 1
+  kill -0 $RUN 2>/dev/null || { bad "the 60 s run ended before $what"; cat "$out"; }
+}
+
 # 1. Closed loop, compared with io.sim.
 start_emulator || exit 1
 # Simulated clock (the config says real): cycles back to back, none skipped under load, so the
@@ -38,12 +50,7 @@ $PY "$(dirname "$0")/compare_with_sim.py" "$TMP/vme.h5" "$TMP/sim.h5" VME || bad
 
 # 2. The emulator stops answering mid-run.
 sed -e "s/^duration_s: .*/duration_s: 60.0/" "$TMP/vme.yaml" >"$TMP/vme_long.yaml"
-"$LODE" run "$TMP/vme_long.yaml" --no-telemetry --no-local-control --quiet --summary-json "$TMP/stall.json" \
-  >"$TMP/stall.out" 2>&1 &
-RUN=$!
-PIDS+=($RUN)
-sleep 1
-kill -0 $RUN 2>/dev/null || { bad "the 60 s run ended before the emulator was stopped"; cat "$TMP/stall.out"; }
+start_mid_run "$TMP/vme_long.yaml" "$TMP/stall.out" "the emulator was stopped" --summary-json "$TMP/stall.json"
 kill -STOP $EMU_PID
 wait $RUN
 check_rc "a silent board faults the run" 1 $? "$TMP/stall.out"
@@ -56,11 +63,7 @@ contains "outputs driven safe: safe codes written and DAC_LOAD rung" "$TMP/dac_s
 kill -CONT $EMU_PID
 sed -e "s/gain: 10.0, unit: N, safe_value: 0.0 }/gain: 10.0, unit: N, safe_value: 1.5 }/" "$TMP/vme_long.yaml" \
   >"$TMP/vme_term.yaml"
-"$LODE" run "$TMP/vme_term.yaml" --no-telemetry --no-local-control --quiet >"$TMP/term.out" 2>&1 &
-RUN=$!
-PIDS+=($RUN)
-sleep 1
-kill -0 $RUN 2>/dev/null || { bad "the 60 s run ended before SIGTERM"; cat "$TMP/term.out"; }
+start_mid_run "$TMP/vme_term.yaml" "$TMP/term.out" "SIGTERM"
 kill -TERM $RUN
 wait $RUN
 check_rc "lode run stops on SIGTERM" 0 $? "$TMP/term.out"

@@ -89,6 +89,16 @@ install_document() {
   say made "$p7s"
 }
 
+# document_head SCHEMA: the opening of a DDS Security document (SCHEMA: governance or
+# permissions), up to its <dds> element.
+document_head() {
+  cat <<EOF
+<?xml version="1.0" encoding="UTF-8"?>
+<dds xmlns:xsi="http://www.w3.org/2001/XMLSchema-instance"
+     xsi:noNamespaceSchemaLocation="http://www.omg.org/spec/DDS-SECURITY/20170901/omg_shared_ca_$1.xsd">
+EOF
+}
+
 # --- governance --------------------------------------------------------------------------------
 # Commands and replies: only permitted identities may read/write them, and their metadata
 # (submessages) are encrypted, so nobody on the wire can read or replay a command.
@@ -98,10 +108,25 @@ install_document() {
 # rtps_protection_kind SIGN every RTPS message carries a GMAC from the sender's session key, so
 # telemetry cannot be forged or altered by a host that was not authenticated, at the cost of one
 # GMAC per message instead of one AES-GCM per sample and submessage.
-cat >"$work/governance.xml" <<EOF
-<?xml version="1.0" encoding="UTF-8"?>
-<dds xmlns:xsi="http://www.w3.org/2001/XMLSchema-instance"
-     xsi:noNamespaceSchemaLocation="http://www.omg.org/spec/DDS-SECURITY/20170901/omg_shared_ca_governance.xsd">
+#
+# protected_topic_rule EXPRESSION: the rule of a command-channel topic (commands and replies
+# are protected alike).
+protected_topic_rule() {
+  cat <<EOF
+        <topic_rule>
+          <topic_expression>$1</topic_expression>
+          <enable_discovery_protection>true</enable_discovery_protection>
+          <enable_liveliness_protection>true</enable_liveliness_protection>
+          <enable_read_access_control>true</enable_read_access_control>
+          <enable_write_access_control>true</enable_write_access_control>
+          <metadata_protection_kind>ENCRYPT</metadata_protection_kind>
+          <data_protection_kind>ENCRYPT</data_protection_kind>
+        </topic_rule>
+EOF
+}
+{
+  document_head governance
+  cat <<EOF
   <domain_access_rules>
     <domain_rule>
       <domains>
@@ -113,24 +138,8 @@ cat >"$work/governance.xml" <<EOF
       <liveliness_protection_kind>ENCRYPT</liveliness_protection_kind>
       <rtps_protection_kind>SIGN</rtps_protection_kind>
       <topic_access_rules>
-        <topic_rule>
-          <topic_expression>lode/*/command</topic_expression>
-          <enable_discovery_protection>true</enable_discovery_protection>
-          <enable_liveliness_protection>true</enable_liveliness_protection>
-          <enable_read_access_control>true</enable_read_access_control>
-          <enable_write_access_control>true</enable_write_access_control>
-          <metadata_protection_kind>ENCRYPT</metadata_protection_kind>
-          <data_protection_kind>ENCRYPT</data_protection_kind>
-        </topic_rule>
-        <topic_rule>
-          <topic_expression>lode/*/reply</topic_expression>
-          <enable_discovery_protection>true</enable_discovery_protection>
-          <enable_liveliness_protection>true</enable_liveliness_protection>
-          <enable_read_access_control>true</enable_read_access_control>
-          <enable_write_access_control>true</enable_write_access_control>
-          <metadata_protection_kind>ENCRYPT</metadata_protection_kind>
-          <data_protection_kind>ENCRYPT</data_protection_kind>
-        </topic_rule>
+$(protected_topic_rule 'lode/*/command')
+$(protected_topic_rule 'lode/*/reply')
         <topic_rule>
           <topic_expression>*</topic_expression>
           <enable_discovery_protection>true</enable_discovery_protection>
@@ -145,6 +154,7 @@ cat >"$work/governance.xml" <<EOF
   </domain_access_rules>
 </dds>
 EOF
+} >"$work/governance.xml"
 install_document "$work/governance.xml" "$out/governance.xml" "$out/governance.p7s"
 
 # --- identities ----------------------------------------------------------------------------------
@@ -208,10 +218,9 @@ for spec in "${identities[@]}"; do
     say made "$cert ($name.key.pem)"
   fi
 
-  cat >"$work/permissions_$name.xml" <<EOF
-<?xml version="1.0" encoding="UTF-8"?>
-<dds xmlns:xsi="http://www.w3.org/2001/XMLSchema-instance"
-     xsi:noNamespaceSchemaLocation="http://www.omg.org/spec/DDS-SECURITY/20170901/omg_shared_ca_permissions.xsd">
+  {
+    document_head permissions
+    cat <<EOF
   <permissions>
     <grant name="${name}_grant">
       <subject_name>CN=$name,O=$ORGANIZATION</subject_name>
@@ -225,5 +234,6 @@ $(rules_for "$role")
   </permissions>
 </dds>
 EOF
+  } >"$work/permissions_$name.xml"
   install_document "$work/permissions_$name.xml" "$out/permissions_$name.xml" "$out/permissions_$name.p7s"
 done
