@@ -24,6 +24,7 @@
 
 #include "lode/hal/can_socket.hpp"
 #include "lode/hal/canopen.hpp"
+#include "polling_thread.hpp"
 
 namespace lode::can_daq_emu {
 
@@ -76,8 +77,7 @@ class DaqNode {
   std::chrono::steady_clock::time_point last_sync_{};
   std::atomic<std::uint64_t> watchdog_trips_{0};
   std::atomic<std::uint64_t> syncs_{0}, tpdos_sent_{0}, rpdos_received_{0};
-  std::atomic<bool> running_{false};
-  std::thread thread_;
+  plugins::boards::PollingThread poller_;  // last: stopped before the members it polls go
 };
 
 }  // namespace lode::can_daq_emu
