@@ -60,6 +60,9 @@ class DaqNode {
 
  private:
   void send_heartbeat();
+  /// Between polls that found nothing: until a frame arrives or the next heartbeat or
+  /// watchdog check is due (a frozen node just sleeps).
+  void wait_for_work();
 
   hal::CanSocket socket_;
   int node_;
