@@ -2,7 +2,7 @@
 
 #include <string>
 
-#include "lode/units.hpp"
+#include "lode/sdk/units.hpp"
 
 namespace lode::plugins::boards {
 

@@ -7,8 +7,8 @@
 // Threads: configure time only.
 #pragma once
 
-#include "lode/block.hpp"
-#include "lode/port.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/port.hpp"
 
 namespace lode::plugins::boards {
 

@@ -11,8 +11,8 @@
 #include <span>
 #include <string_view>
 
-#include "lode/json.hpp"
-#include "lode/params.hpp"
+#include "lode/sdk/json.hpp"
+#include "lode/sdk/params.hpp"
 
 namespace lode::plugins::plants {
 

@@ -5,8 +5,8 @@
 
 #include <string>
 
-#include "lode/port.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/port.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace lode::plugins::boards::testing {
 

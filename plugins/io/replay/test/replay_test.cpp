@@ -14,8 +14,8 @@
 
 #include "io_testing.hpp"
 #include "lode/record/hdf5_recorder.hpp"
-#include "lode/testing/harness.hpp"
-#include "lode/testing/scratch_dir.hpp"
+#include "lode/sdk/testing/harness.hpp"
+#include "lode/sdk/testing/scratch_dir.hpp"
 
 namespace {
 

@@ -4,7 +4,7 @@
 #include <array>
 #include <string>
 
-#include "lode/port.hpp"
+#include "lode/sdk/port.hpp"
 
 namespace lode::plugins::plants::testing {
 
