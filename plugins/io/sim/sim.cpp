@@ -9,9 +9,10 @@
 #include <numbers>
 #include <set>
 
+#include "board_ports.hpp"
 #include "lode/sdk/plugin.hpp"
-#include "lode/sdk/units.hpp"
 #include "lode/sdk/text.hpp"
+#include "lode/sdk/units.hpp"
 
 namespace lode::plugins {
 
@@ -20,12 +21,6 @@ namespace {
 std::string name_list(const Elements& elements) {
   std::string out;
   for (const auto& e : elements) out += (out.empty() ? "" : ", ") + e.name;
-  return out;
-}
-
-Elements with_unit(const Elements& elements, const std::string& unit) {
-  Elements out = elements;
-  for (auto& e : out) e.unit = unit;
   return out;
 }
 
@@ -115,11 +110,11 @@ Status SimBoard::configure(ConfigureContext& ctx) {
   }
 
   // --- fault injection --------------------------------------------------------------------
-  inject_channel_ = -1;
+  nan_window_ = FaultWindow{};
   if (std::optional<Params> inject = params.optional_child("inject_nan")) {
-    parse_injection_window(*inject, sensors_status.is_ok(), inject_channel_, inject_start_ns_, inject_end_ns_);
+    parse_injection_window(*inject, sensors_status.is_ok(), nan_window_);
   }
-  stuck_channel_ = -1;
+  stuck_window_ = FaultWindow{};
   if (std::optional<Params> stuck = params.optional_child("inject_stuck")) {
     stuck_holds_last_ = !stuck->has("value_v");
     const double value_v = stuck_holds_last_ ? 0.0 : stuck->number("value_v");
@@ -132,7 +127,7 @@ Status SimBoard::configure(ConfigureContext& ctx) {
       stuck_count_ = std::clamp(std::floor(value_v / lsb_v_ + 0.5), count_min_, count_max_);
       stuck_signal_v_ = stuck_count_ * lsb_v_;
     }
-    parse_injection_window(*stuck, sensors_status.is_ok(), stuck_channel_, stuck_start_ns_, stuck_end_ns_);
+    parse_injection_window(*stuck, sensors_status.is_ok(), stuck_window_);
   }
 
   // --- ports and buffers ------------------------------------------------------------------
@@ -151,7 +146,7 @@ Status SimBoard::configure(ConfigureContext& ctx) {
       channels.insert(channels.end(), c.begin(), c.end());
     }
     ctx.declare_output(signals_, "signals", channels);
-    ctx.declare_output(counts_, "counts", with_unit(channels, std::string(kDimensionless)));
+    ctx.declare_output(counts_, "counts", boards::counts_of(channels));
   }
   truth_buffer_.assign(plant_outputs.size(), 0.0);
   clean_signals_.assign(channel_count_, 0.0);
@@ -164,9 +159,8 @@ Status SimBoard::configure(ConfigureContext& ctx) {
   return sensors_status;
 }
 
-void SimBoard::parse_injection_window(Params& window, bool sensors_ok, std::int64_t& channel,
-                                      std::int64_t& start_ns, std::int64_t& end_ns) {
-  channel = -1;
+void SimBoard::parse_injection_window(Params& window, bool sensors_ok, FaultWindow& out) {
+  out.channel = -1;
   const std::string name = window.text("channel");
   const double start_s = window.number("start_s");
   const double duration_s = window.number("duration_s");
@@ -183,7 +177,7 @@ void SimBoard::parse_injection_window(Params& window, bool sensors_ok, std::int6
         names += (names.empty() ? "" : ", ") + e.name;
         if (!found && e.name == name) {
           found = true;
-          channel = static_cast<std::int64_t>(index);
+          out.channel = static_cast<std::int64_t>(index);
         }
         if (!found) ++index;
       }
@@ -191,10 +185,10 @@ void SimBoard::parse_injection_window(Params& window, bool sensors_ok, std::int6
     if (!found) window.fail("channel", "no channel '" + name + "' on this board (channels: " + names + ")");
   }
   if (window.ok()) {
-    start_ns = std::llround(start_s * 1e9);
-    end_ns = start_ns + std::llround(duration_s * 1e9);
+    out.start_ns = std::llround(start_s * 1e9);
+    out.end_ns = out.start_ns + std::llround(duration_s * 1e9);
   } else {
-    channel = -1;
+    out.channel = -1;
   }
 }
 
@@ -282,15 +276,25 @@ Status SimBoard::activate() {
 
 StepStatus SimBoard::step(const Tick& tick) noexcept { return sample(tick.time_ns, true); }
 
-bool SimBoard::injected(std::size_t c, std::int64_t time_ns) const noexcept {
-  const auto channel = static_cast<std::int64_t>(c);
-  if (channel == inject_live_channel_.load(std::memory_order_relaxed)) return true;
-  return channel == inject_channel_ && time_ns >= inject_start_ns_ && time_ns < inject_end_ns_;
+bool SimBoard::FaultWindow::covers(std::size_t c, std::int64_t time_ns) const noexcept {
+  return static_cast<std::int64_t>(c) == channel && time_ns >= start_ns && time_ns < end_ns;
 }
 
-bool SimBoard::stuck(std::size_t c, std::int64_t time_ns) const noexcept {
-  return static_cast<std::int64_t>(c) == stuck_channel_ && time_ns >= stuck_start_ns_ && time_ns < stuck_end_ns_;
+Json SimBoard::FaultWindow::describe() const {
+  Json window = Json::object();
+  window["channel_index"] = static_cast<double>(channel);
+  window["start_s"] = static_cast<double>(start_ns) * 1e-9;
+  window["end_s"] = static_cast<double>(end_ns) * 1e-9;
+  window["window"] = "start_s <= scheduled time < end_s";
+  return window;
 }
+
+bool SimBoard::injected(std::size_t c, std::int64_t time_ns) const noexcept {
+  if (static_cast<std::int64_t>(c) == inject_live_channel_.load(std::memory_order_relaxed)) return true;
+  return nan_window_.covers(c, time_ns);
+}
+
+bool SimBoard::stuck(std::size_t c, std::int64_t time_ns) const noexcept { return stuck_window_.covers(c, time_ns); }
 
 StepStatus SimBoard::sample(std::int64_t time_ns, bool in_cycle) noexcept {
   const bool with_noise = in_cycle;
@@ -477,21 +481,10 @@ void SimBoard::describe(Json& out) const {
   out["adc_saturations"] = static_cast<double>(saturation_count());
   out["command_clamps"] = static_cast<double>(command_clamp_count());
   out["safe"] = safe();
-  if (inject_channel_ >= 0) {
-    Json inject = Json::object();
-    inject["channel_index"] = static_cast<double>(inject_channel_);
-    inject["start_s"] = static_cast<double>(inject_start_ns_) * 1e-9;
-    inject["end_s"] = static_cast<double>(inject_end_ns_) * 1e-9;
-    inject["window"] = "start_s <= scheduled time < end_s";
-    out["inject_nan"] = std::move(inject);
-  }
+  if (nan_window_.channel >= 0) out["inject_nan"] = nan_window_.describe();
   out["inject_nan_channel"] = static_cast<double>(inject_live_channel_.load(std::memory_order_relaxed));
-  if (stuck_channel_ >= 0) {
-    Json stuck = Json::object();
-    stuck["channel_index"] = static_cast<double>(stuck_channel_);
-    stuck["start_s"] = static_cast<double>(stuck_start_ns_) * 1e-9;
-    stuck["end_s"] = static_cast<double>(stuck_end_ns_) * 1e-9;
-    stuck["window"] = "start_s <= scheduled time < end_s";
+  if (stuck_window_.channel >= 0) {
+    Json stuck = stuck_window_.describe();
     if (stuck_holds_last_) {
       stuck["reads"] = "its last reading before the window (frozen converter)";
     } else {

@@ -84,6 +84,17 @@ class SimBoard final : public Block, public Tunables, public Board {
     std::size_t channel_count = 0;
   };
 
+  /// A fault-injection window of the YAML: one channel (-1 = none) on the cycles whose
+  /// scheduled time is in [start_ns, end_ns).
+  struct FaultWindow {
+    std::int64_t channel = -1;
+    std::int64_t start_ns = 0;
+    std::int64_t end_ns = 0;  ///< exclusive
+    [[nodiscard]] bool covers(std::size_t c, std::int64_t time_ns) const noexcept;
+    /// describe(): the channel's index, start_s, end_s and what the window means.
+    [[nodiscard]] Json describe() const;
+  };
+
   Status configure_sensors(ConfigureContext& ctx, Params& params);
   /// Fill every output from the plant's current state; noise only when `with_noise`.
   /// `in_cycle`: a scheduled cycle (noise and fault injection apply), not activate()'s sample.
@@ -94,8 +105,7 @@ class SimBoard final : public Block, public Tunables, public Board {
   [[nodiscard]] bool stuck(std::size_t c, std::int64_t time_ns) const noexcept;
   /// `{channel, start_s, duration_s}` of a fault-injection map: the channel's index (-1 when
   /// the map is invalid, which is reported) and the window [start_ns, end_ns).
-  void parse_injection_window(Params& window, bool sensors_ok, std::int64_t& channel, std::int64_t& start_ns,
-                              std::int64_t& end_ns);
+  void parse_injection_window(Params& window, bool sensors_ok, FaultWindow& out);
   /// Standard normal deviate from the board's own generator (Box-Muller, deterministic on
   /// every standard library, unlike std::normal_distribution).
   double gaussian() noexcept;
@@ -126,16 +136,12 @@ class SimBoard final : public Block, public Tunables, public Board {
   std::vector<double> command_limit_;  ///< empty: no clamp
   std::int64_t substeps_ = 1;
 
-  // Fault injection: the YAML window (channel -1 = none) and the live tunable.
-  std::int64_t inject_channel_ = -1;
-  std::int64_t inject_start_ns_ = 0;
-  std::int64_t inject_end_ns_ = 0;  ///< exclusive
+  // Fault injection: the YAML window of NaN readings and the live tunable.
+  FaultWindow nan_window_;
   std::atomic<std::int64_t> inject_live_channel_{-1};
-  // Stuck channel (YAML window, channel -1 = none): reads stuck_count_ / stuck_signal_v_, or
-  // with stuck_holds_last_ its previous cycle's reading.
-  std::int64_t stuck_channel_ = -1;
-  std::int64_t stuck_start_ns_ = 0;
-  std::int64_t stuck_end_ns_ = 0;  ///< exclusive
+  // Stuck channel (YAML window): reads stuck_count_ / stuck_signal_v_, or with
+  // stuck_holds_last_ its previous cycle's reading.
+  FaultWindow stuck_window_;
   bool stuck_holds_last_ = true;
   double stuck_count_ = 0.0;
   double stuck_signal_v_ = 0.0;

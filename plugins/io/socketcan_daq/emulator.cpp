@@ -127,28 +127,23 @@ bool DaqNode::poll() {
 }
 
 void DaqNode::start() {
-  if (running_.exchange(true)) return;
-  thread_ = std::thread([this] {
-    while (running_.load(std::memory_order_relaxed)) {
-      if (poll()) continue;
-      if (static_cast<Fault>(fault_.load()) == Fault::silent) {
-        std::this_thread::sleep_for(std::chrono::milliseconds(1));
-        continue;
-      }
-      // Sleep until a frame arrives or the next heartbeat (or watchdog check) is due, not on a
-      // short fixed tick: in an emulated guest every needless wake-up costs the real ones time.
-      auto until = next_heartbeat_;
-      if (sync_watchdog_.count() > 0 && state() == hal::canopen::NmtState::operational)
-        until = std::min(until, last_sync_ + sync_watchdog_);
-      const auto wait = std::chrono::duration_cast<std::chrono::nanoseconds>(until - std::chrono::steady_clock::now());
-      socket_.wait_readable(std::clamp<std::int64_t>(wait.count(), 50'000, 20'000'000));
-    }
-  });
+  poller_.start([this] { return poll(); }, [this] { wait_for_work(); });
 }
 
-void DaqNode::stop() {
-  if (!running_.exchange(false)) return;
-  if (thread_.joinable()) thread_.join();
+void DaqNode::wait_for_work() {
+  if (static_cast<Fault>(fault_.load()) == Fault::silent) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    return;
+  }
+  // Sleep until a frame arrives or the next heartbeat (or watchdog check) is due, not on a
+  // short fixed tick: in an emulated guest every needless wake-up costs the real ones time.
+  auto until = next_heartbeat_;
+  if (sync_watchdog_.count() > 0 && state() == hal::canopen::NmtState::operational)
+    until = std::min(until, last_sync_ + sync_watchdog_);
+  const auto wait = std::chrono::duration_cast<std::chrono::nanoseconds>(until - std::chrono::steady_clock::now());
+  socket_.wait_readable(std::clamp<std::int64_t>(wait.count(), 50'000, 20'000'000));
 }
+
+void DaqNode::stop() { poller_.stop(); }
 
 }  // namespace lode::can_daq_emu

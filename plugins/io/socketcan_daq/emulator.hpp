@@ -24,6 +24,7 @@
 
 #include "lode/hal/can_socket.hpp"
 #include "lode/hal/canopen.hpp"
+#include "polling_thread.hpp"
 
 namespace lode::can_daq_emu {
 
@@ -59,6 +60,9 @@ class DaqNode {
 
  private:
   void send_heartbeat();
+  /// Between polls that found nothing: until a frame arrives or the next heartbeat or
+  /// watchdog check is due (a frozen node just sleeps).
+  void wait_for_work();
 
   hal::CanSocket socket_;
   int node_;
@@ -76,8 +80,7 @@ class DaqNode {
   std::chrono::steady_clock::time_point last_sync_{};
   std::atomic<std::uint64_t> watchdog_trips_{0};
   std::atomic<std::uint64_t> syncs_{0}, tpdos_sent_{0}, rpdos_received_{0};
-  std::atomic<bool> running_{false};
-  std::thread thread_;
+  plugins::boards::PollingThread poller_;  // last: stopped before the members it polls go
 };
 
 }  // namespace lode::can_daq_emu

@@ -1,9 +1,9 @@
 #include "socketcan_daq.hpp"
 
-
 #include <algorithm>
 #include <cmath>
 
+#include "board_ports.hpp"
 #include "lode/sdk/clock.hpp"
 #include "lode/sdk/plugin.hpp"
 #include "lode/sdk/units.hpp"
@@ -76,10 +76,10 @@ std::vector<can_daq::Pdo> parse_pdos(Params& params, const char* key, bool outpu
   return out;
 }
 
-Elements elements_of(const std::vector<can_daq::Pdo>& pdos, bool dimensionless) {
+Elements elements_of(const std::vector<can_daq::Pdo>& pdos) {
   Elements out;
   for (const auto& p : pdos)
-    for (const auto& c : p.channels) out.push_back({c.name, dimensionless ? std::string(kDimensionless) : c.unit});
+    for (const auto& c : p.channels) out.push_back({c.name, c.unit});
   return out;
 }
 
@@ -103,9 +103,7 @@ Status SocketCanDaq::configure(ConfigureContext& ctx) {
   for (const auto& p : rpdo_) output_count_ += p.channels.size();
   tpdo_seen_.assign(tpdo_.size(), 0);
   raw_.assign(8, 0);
-  if (output_count_ > 0) ctx.declare_input(command_, "command", elements_of(rpdo_, false), true);
-  ctx.declare_output(signals_, "signals", elements_of(tpdo_, false));
-  ctx.declare_output(counts_, "counts", elements_of(tpdo_, true));
+  boards::declare_board_ports(ctx, command_, signals_, counts_, elements_of(rpdo_), elements_of(tpdo_));
   return {};
 }
 

@@ -102,17 +102,9 @@ bool PentekEmulator::poll() {
 }
 
 void PentekEmulator::start() {
-  if (running_.exchange(true)) return;
-  thread_ = std::thread([this] {
-    while (running_.load(std::memory_order_relaxed)) {
-      if (!poll()) std::this_thread::sleep_for(std::chrono::microseconds(20));
-    }
-  });
+  poller_.start([this] { return poll(); }, [] { std::this_thread::sleep_for(std::chrono::microseconds(20)); });
 }
 
-void PentekEmulator::stop() {
-  if (!running_.exchange(false)) return;
-  if (thread_.joinable()) thread_.join();
-}
+void PentekEmulator::stop() { poller_.stop(); }
 
 }  // namespace lode::vme

@@ -22,6 +22,7 @@
 
 #include "lode/hal/register_window.hpp"
 #include "lode/sdk/status.hpp"
+#include "polling_thread.hpp"
 #include "regmap.hpp"
 
 namespace lode::vme {
@@ -68,8 +69,7 @@ class PentekEmulator {
   std::atomic<int> fault_{0};
   std::atomic<std::uint32_t> fault_bits_{0};
   std::atomic<std::uint64_t> conversions_{0}, dac_loads_{0};
-  std::atomic<bool> running_{false};
-  std::thread thread_;
+  plugins::boards::PollingThread poller_;  // last: stopped before the members it polls go
 };
 
 }  // namespace lode::vme

@@ -1,9 +1,9 @@
 #include "vme_pentek.hpp"
 
-
 #include <cmath>
 #include <cstdio>
 
+#include "board_ports.hpp"
 #include "lode/sdk/clock.hpp"
 #include "lode/sdk/plugin.hpp"
 #include "lode/sdk/units.hpp"
@@ -39,9 +39,9 @@ hal::AnalogChannel parse_channel(Params& p, bool output) {
   return c;
 }
 
-Elements elements_of(const std::vector<hal::AnalogChannel>& channels, bool dimensionless) {
+Elements elements_of(const std::vector<hal::AnalogChannel>& channels) {
   Elements out;
-  for (const auto& c : channels) out.push_back({c.name, dimensionless ? std::string(kDimensionless) : c.unit});
+  for (const auto& c : channels) out.push_back({c.name, c.unit});
   return out;
 }
 
@@ -80,9 +80,7 @@ Status VmePentekBoard::configure(ConfigureContext& ctx) {
   dac_conv_.clear();
   for (const auto& c : adc_) adc_conv_.emplace_back(c);
   for (const auto& c : dac_) dac_conv_.emplace_back(c);
-  if (!dac_.empty()) ctx.declare_input(command_, "command", elements_of(dac_, false), true);
-  ctx.declare_output(signals_, "signals", elements_of(adc_, false));
-  ctx.declare_output(counts_, "counts", elements_of(adc_, true));
+  boards::declare_board_ports(ctx, command_, signals_, counts_, elements_of(dac_), elements_of(adc_));
   return {};
 }
 

@@ -1,23 +1,12 @@
 #include "encoder_stage.hpp"
 
 #include <cmath>
-#include <cstdio>
 #include <numbers>
-#include <string>
 
 #include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins {
-
-namespace {
-
-std::string text_of(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%g", value);
-  return buffer;
-}
-
-}  // namespace
 
 EncoderStage::EncoderStage()
     : outputs_{{"x", "m"}, {"v", "m/s"}},
@@ -33,13 +22,13 @@ Status EncoderStage::configure(Params& params) {
   c.frequency_hz = params.number("frequency_hz", 0.0);
   c.phase_rad = params.number("phase_rad", 0.0);
 
-  params.check(std::isfinite(c.offset_m), "offset_m", "must be finite, got " + text_of(c.offset_m));
-  params.check(std::isfinite(c.velocity_m_s), "velocity_m_s", "must be finite, got " + text_of(c.velocity_m_s));
+  params.check(std::isfinite(c.offset_m), "offset_m", "must be finite, got " + number_text(c.offset_m));
+  params.check(std::isfinite(c.velocity_m_s), "velocity_m_s", "must be finite, got " + number_text(c.velocity_m_s));
   params.check(std::isfinite(c.amplitude_m) && c.amplitude_m >= 0.0, "amplitude_m",
-               "must be >= 0 m (the phase sets the sign), got " + text_of(c.amplitude_m));
+               "must be >= 0 m (the phase sets the sign), got " + number_text(c.amplitude_m));
   params.check(std::isfinite(c.frequency_hz) && c.frequency_hz >= 0.0, "frequency_hz",
-               "must be >= 0 Hz, got " + text_of(c.frequency_hz));
-  params.check(std::isfinite(c.phase_rad), "phase_rad", "must be finite, got " + text_of(c.phase_rad));
+               "must be >= 0 Hz, got " + number_text(c.frequency_hz));
+  params.check(std::isfinite(c.phase_rad), "phase_rad", "must be finite, got " + number_text(c.phase_rad));
   if (!params.ok()) return Status::error("invalid parameters");
   apply(c);
   return Status::ok();

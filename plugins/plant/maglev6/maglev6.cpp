@@ -3,27 +3,16 @@
 #include <Eigen/LU>
 #include <cmath>
 #include <numbers>
-#include <cstdio>
 #include <string>
 #include <vector>
 
 #include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
+#include "plant_parameters.hpp"
 
 namespace lode::plugins {
 
 namespace {
-
-std::string text_of(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%g", value);
-  return buffer;
-}
-
-std::array<double, 6> to_array6(const std::vector<double>& values) {
-  std::array<double, 6> out{};
-  for (std::size_t i = 0; i < out.size() && i < values.size(); ++i) out[i] = values[i];
-  return out;
-}
 
 std::vector<double> row_major(const Eigen::Matrix3d& m) {
   std::vector<double> out;
@@ -64,7 +53,7 @@ Eigen::Matrix3d read_input_matrix(Params& params, std::string_view key, const Ei
     const double det = m.determinant();
     const double scale = m.cwiseAbs().maxCoeff();
     if (!(std::abs(det) > 1e-12 * scale * scale * scale)) {
-      params.fail(key, std::string("is singular (det = ") + text_of(det) + "): motors A, B, C cannot move " +
+      params.fail(key, std::string("is singular (det = ") + number_text(det) + "): motors A, B, C cannot move " +
                            axes + " independently");
     }
   }
@@ -98,17 +87,16 @@ Status Maglev6::configure(Params& params) {
       read_input_matrix(params, "b_planar_acc_per_a", defaults.b_planar_acc_per_a, "x, y and theta_z");
   c.b_vertical_acc_per_a =
       read_input_matrix(params, "b_vertical_acc_per_a", defaults.b_vertical_acc_per_a, "z, theta_x and theta_y");
-  c.initial = to_array6(params.numbers("initial", std::vector<double>(6, 0.0), 6));
-  c.initial_velocity = to_array6(params.numbers("initial_velocity", std::vector<double>(6, 0.0), 6));
-  c.disturbance_wrench = to_array6(params.numbers("disturbance_wrench", std::vector<double>(6, 0.0), 6));
+  plants::read_initial_condition(params, c.initial, c.initial_velocity);
+  plants::read_numbers_into(params, "disturbance_wrench", c.disturbance_wrench);
 
   const auto positive = [&](double value, std::string_view key, const char* unit) {
     params.check(value > 0.0 && std::isfinite(value), key,
-                 std::string("must be > 0 ") + unit + ", got " + text_of(value));
+                 std::string("must be > 0 ") + unit + ", got " + number_text(value));
   };
   const auto non_negative = [&](double value, std::string_view key, const char* unit) {
     params.check(value >= 0.0 && std::isfinite(value), key,
-                 std::string("must be >= 0 ") + unit + " (0 = no spring), got " + text_of(value));
+                 std::string("must be >= 0 ") + unit + " (0 = no spring), got " + number_text(value));
   };
   positive(c.mass_kg, "mass_kg", "kg");
   positive(c.inertia_xx_kg_m2, "inertia_xx_kg_m2", "kg*m^2");
@@ -146,10 +134,7 @@ void Maglev6::apply(const Maglev6Config& config) {
 }
 
 void Maglev6::reset() noexcept {
-  for (std::size_t i = 0; i < kAxes; ++i) {
-    x_[i] = config_.initial[i];
-    x_[kAxes + i] = config_.initial_velocity[i];
-  }
+  plants::write_initial_state(config_.initial, config_.initial_velocity, x_.data());
 }
 
 void Maglev6::forcing(const double* u, std::array<double, kAxes>& acceleration) const noexcept {
@@ -283,24 +268,19 @@ void Maglev6::describe(Json& out) const {
     natural[names[i]] = std::move(axis);
   }
   out["vertical_natural_frequency"] = std::move(natural);
-  const Mode planar = planar_mode();
-  const Mode vertical = vertical_mode();
+  const auto mode_json = [](const Mode& mode, const char* states, const char* inputs) {
+    Json m = Json::object();
+    m["states"] = states;
+    m["inputs"] = inputs;
+    m["A"] = matrix_json(mode.a);
+    m["B"] = matrix_json(mode.b);
+    return m;
+  };
   Json modes = Json::object();
-  Json p = Json::object();
-  p["states"] = "x, y, theta_z, vx, vy, omega_z";
-  p["inputs"] = "iq_a, iq_b, iq_c";
-  p["A"] = matrix_json(planar.a);
-  p["B"] = matrix_json(planar.b);
-  modes["planar"] = std::move(p);
-  Json v = Json::object();
-  v["states"] = "z, theta_x, theta_y, vz, omega_x, omega_y";
-  v["inputs"] = "id_a, id_b, id_c";
-  v["A"] = matrix_json(vertical.a);
-  v["B"] = matrix_json(vertical.b);
-  modes["vertical"] = std::move(v);
+  modes["planar"] = mode_json(planar_mode(), "x, y, theta_z, vx, vy, omega_z", "iq_a, iq_b, iq_c");
+  modes["vertical"] = mode_json(vertical_mode(), "z, theta_x, theta_y, vz, omega_x, omega_y", "id_a, id_b, id_c");
   out["continuous_modes"] = std::move(modes);
-  out["initial"] = std::vector<double>(config_.initial.begin(), config_.initial.end());
-  out["initial_velocity"] = std::vector<double>(config_.initial_velocity.begin(), config_.initial_velocity.end());
+  plants::describe_initial_condition(out, config_.initial, config_.initial_velocity);
   out["disturbance_wrench"] =
       std::vector<double>(config_.disturbance_wrench.begin(), config_.disturbance_wrench.end());
   out["integration"] = "exact zero-order hold per axis (double integrator or undamped spring-mass)";

@@ -1,28 +1,10 @@
 #include "planar_stage.hpp"
 
-#include <cstdio>
-#include <string>
-#include <vector>
-
 #include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
+#include "plant_parameters.hpp"
 
 namespace lode::plugins {
-
-namespace {
-
-std::string text_of(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%g", value);
-  return buffer;
-}
-
-std::array<double, 3> to_array3(const std::vector<double>& values) {
-  std::array<double, 3> out{};
-  for (std::size_t i = 0; i < out.size() && i < values.size(); ++i) out[i] = values[i];
-  return out;
-}
-
-}  // namespace
 
 PlanarStage::PlanarStage()
     : inputs_{{"fx", "N"}, {"fy", "N"}, {"tz", "N*m"}},
@@ -37,15 +19,14 @@ Status PlanarStage::configure(Params& params) {
   PlanarStageConfig c;
   c.mass_kg = params.number("mass_kg", defaults.mass_kg);
   c.inertia_kg_m2 = params.number("inertia_kg_m2", defaults.inertia_kg_m2);
-  c.initial = to_array3(params.numbers("initial", {0.0, 0.0, 0.0}, 3));
-  c.initial_velocity = to_array3(params.numbers("initial_velocity", {0.0, 0.0, 0.0}, 3));
+  plants::read_initial_condition(params, c.initial, c.initial_velocity);
   c.yaw_coupling_m = params.number("yaw_coupling_m", defaults.yaw_coupling_m);
   c.disturbance_torque_n_m =
       params.number("disturbance_torque_n_m", defaults.disturbance_torque_n_m);
 
-  params.check(c.mass_kg > 0.0, "mass_kg", "must be > 0 kg, got " + text_of(c.mass_kg));
+  params.check(c.mass_kg > 0.0, "mass_kg", "must be > 0 kg, got " + number_text(c.mass_kg));
   params.check(c.inertia_kg_m2 > 0.0, "inertia_kg_m2",
-               "must be > 0 kg*m^2, got " + text_of(c.inertia_kg_m2));
+               "must be > 0 kg*m^2, got " + number_text(c.inertia_kg_m2));
   if (!params.ok()) return Status::error("invalid parameters");
   apply(c);
   return Status::ok();
@@ -57,12 +38,7 @@ void PlanarStage::apply(const PlanarStageConfig& config) {
 }
 
 void PlanarStage::reset() noexcept {
-  x_[kX] = config_.initial[0];
-  x_[kY] = config_.initial[1];
-  x_[kThetaZ] = config_.initial[2];
-  x_[kVx] = config_.initial_velocity[0];
-  x_[kVy] = config_.initial_velocity[1];
-  x_[kOmegaZ] = config_.initial_velocity[2];
+  plants::write_initial_state(config_.initial, config_.initial_velocity, x_.data());
 }
 
 void PlanarStage::advance(double dt_s, const double* u) noexcept {
@@ -99,9 +75,7 @@ void PlanarStage::describe(Json& out) const {
   out["inertia_kg_m2"] = config_.inertia_kg_m2;
   out["yaw_coupling_m"] = config_.yaw_coupling_m;
   out["disturbance_torque_n_m"] = config_.disturbance_torque_n_m;
-  out["initial"] = std::vector<double>(config_.initial.begin(), config_.initial.end());
-  out["initial_velocity"] =
-      std::vector<double>(config_.initial_velocity.begin(), config_.initial_velocity.end());
+  plants::describe_initial_condition(out, config_.initial, config_.initial_velocity);
   // The ZOH-discretised double integrator per axis (the DSP's view of the plant):
   // y(z)/u(z) = T^2 (z + 1) / (2 m (z - 1)^2); its gain factor 1/m and 1/Iz.
   out["x_y_gain_1_per_kg"] = 1.0 / config_.mass_kg;

@@ -1,12 +1,14 @@
 #include "rigid_body6.hpp"
 
 #include <cmath>
-#include <cstdio>
 #include <numbers>
 #include <string>
 #include <vector>
 
 #include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
+#include "plant_parameters.hpp"
+#include "runge_kutta.hpp"
 
 namespace lode::plugins {
 
@@ -56,17 +58,7 @@ void derivative(const Physics& physics, const State& x, const Input& u, State& d
 }
 
 void rk4_step(const Physics& physics, const State& x, const Input& u, double h, State& x_next) noexcept {
-  State k1, k2, k3, k4, tmp;
-  derivative(physics, x, u, k1);
-  for (std::size_t i = 0; i < kStateSize; ++i) tmp[i] = x[i] + 0.5 * h * k1[i];
-  derivative(physics, tmp, u, k2);
-  for (std::size_t i = 0; i < kStateSize; ++i) tmp[i] = x[i] + 0.5 * h * k2[i];
-  derivative(physics, tmp, u, k3);
-  for (std::size_t i = 0; i < kStateSize; ++i) tmp[i] = x[i] + h * k3[i];
-  derivative(physics, tmp, u, k4);
-  for (std::size_t i = 0; i < kStateSize; ++i) {
-    x_next[i] = x[i] + (h / 6.0) * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
-  }
+  plants::rk4_step(x, h, [&](const State& at, State& slope) { derivative(physics, at, u, slope); }, x_next);
 }
 
 void integrate(const Physics& physics, std::size_t substeps, const State& x, const Input& u, double dt,
@@ -88,18 +80,6 @@ using namespace rigid_body6;
 
 constexpr std::int64_t kMaxSubsteps = 1000;
 
-std::string text_of(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%g", value);
-  return buffer;
-}
-
-std::array<double, 6> to_array6(const std::vector<double>& values) {
-  std::array<double, 6> out{};
-  for (std::size_t i = 0; i < out.size() && i < values.size(); ++i) out[i] = values[i];
-  return out;
-}
-
 }  // namespace
 
 RigidBody6::RigidBody6()
@@ -116,26 +96,22 @@ Status RigidBody6::configure(Params& params) {
   const RigidBody6Config defaults;
   RigidBody6Config c;
   c.physics.mass_kg = params.number("mass_kg", defaults.physics.mass_kg);
-  const std::vector<double> inertia = params.numbers(
-      "inertia_kg_m2",
-      std::vector<double>(defaults.physics.inertia_kg_m2.begin(), defaults.physics.inertia_kg_m2.end()), 3);
-  for (std::size_t i = 0; i < 3 && i < inertia.size(); ++i) c.physics.inertia_kg_m2[i] = inertia[i];
+  plants::read_numbers_into(params, "inertia_kg_m2", c.physics.inertia_kg_m2);  // default: Table 1
   c.physics.gravity_m_s2 = params.number("gravity_m_s2", defaults.physics.gravity_m_s2);
-  c.initial = to_array6(params.numbers("initial", std::vector<double>(6, 0.0), 6));
-  c.initial_velocity = to_array6(params.numbers("initial_velocity", std::vector<double>(6, 0.0), 6));
+  plants::read_initial_condition(params, c.initial, c.initial_velocity);
   const std::int64_t substeps = params.integer("substeps", 1);
 
-  params.check(c.physics.mass_kg > 0.0, "mass_kg", "must be > 0 kg, got " + text_of(c.physics.mass_kg));
+  params.check(c.physics.mass_kg > 0.0, "mass_kg", "must be > 0 kg, got " + number_text(c.physics.mass_kg));
   for (std::size_t i = 0; i < 3; ++i) {
     params.check(c.physics.inertia_kg_m2[i] > 0.0, "inertia_kg_m2",
-                 "principal inertias Ix, Iy, Iz must be > 0 kg*m^2, got " + text_of(c.physics.inertia_kg_m2[i]) +
+                 "principal inertias Ix, Iy, Iz must be > 0 kg*m^2, got " + number_text(c.physics.inertia_kg_m2[i]) +
                      " for axis " + std::to_string(i));
   }
   params.check(c.physics.gravity_m_s2 >= 0.0, "gravity_m_s2",
-               "must be >= 0 m/s^2 (z points up; gravity pulls along -z), got " + text_of(c.physics.gravity_m_s2));
+               "must be >= 0 m/s^2 (z points up; gravity pulls along -z), got " + number_text(c.physics.gravity_m_s2));
   // E (Eq. 10) is singular at theta = +-90 deg: refuse a start within 1 deg of it.
   params.check(std::abs(std::cos(c.initial[kTheta])) > std::sin(std::numbers::pi / 180.0), "initial",
-               "initial pitch theta = " + text_of(c.initial[kTheta]) +
+               "initial pitch theta = " + number_text(c.initial[kTheta]) +
                    " rad is at the Euler-angle singularity (cos(theta) = 0) of E");
   if (substeps < 1 || substeps > kMaxSubsteps) {
     params.fail("substeps", "must be within 1 ... 1000, got " + std::to_string(substeps));
@@ -153,10 +129,7 @@ void RigidBody6::apply(const RigidBody6Config& config) {
 }
 
 void RigidBody6::reset() noexcept {
-  for (std::size_t i = 0; i < kPoseSize; ++i) {
-    x_[i] = config_.initial[i];
-    x_[kPoseSize + i] = config_.initial_velocity[i];
-  }
+  plants::write_initial_state(config_.initial, config_.initial_velocity, x_.data());
   applied_.fill(0.0);
 }
 
@@ -191,8 +164,7 @@ void RigidBody6::describe(Json& out) const {
   out["mass_kg"] = ph.mass_kg;
   out["inertia_kg_m2"] = std::vector<double>(ph.inertia_kg_m2.begin(), ph.inertia_kg_m2.end());
   out["gravity_m_s2"] = ph.gravity_m_s2;
-  out["initial"] = std::vector<double>(config_.initial.begin(), config_.initial.end());
-  out["initial_velocity"] = std::vector<double>(config_.initial_velocity.begin(), config_.initial_velocity.end());
+  plants::describe_initial_condition(out, config_.initial, config_.initial_velocity);
   out["M"] = std::vector<double>{ph.mass_kg, ph.mass_kg, ph.mass_kg, ph.inertia_kg_m2[0], ph.inertia_kg_m2[1],
                                  ph.inertia_kg_m2[2]};
   out["integration"] = "RK4, " + std::to_string(config_.substeps) +

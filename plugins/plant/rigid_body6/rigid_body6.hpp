@@ -83,6 +83,8 @@ struct RigidBody6Config {
 
 class RigidBody6 final : public PlantModel, public ProcessModel {
  public:
+  static constexpr std::size_t kStateSize = rigid_body6::kStateSize;
+
   RigidBody6();
 
   /// Shared by both interfaces (same signature): read parameters, then apply().

@@ -2,21 +2,16 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <string>
 #include <vector>
 
 #include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
+#include "runge_kutta.hpp"
 
 namespace lode::plugins {
 
 namespace {
-
-std::string text_of(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%g", value);
-  return buffer;
-}
 
 double sum_of_squares(const std::vector<double>& v) {
   double s = 0.0;
@@ -75,7 +70,7 @@ Status check_curve(const std::vector<double>& gap_m, const std::vector<double>& 
                          " gaps and " + std::to_string(force_n.size()) + " forces");
   }
   for (double d : gap_m) {
-    if (!(d > 0.0)) return Status::error("every gap must be > 0 m, got " + text_of(d));
+    if (!(d > 0.0)) return Status::error("every gap must be > 0 m, got " + number_text(d));
   }
   return Status::ok();
 }
@@ -183,25 +178,25 @@ Status Suspension::configure(Params& params) {
   c.process_discretization =
       discretization == "rk4" ? SuspensionDiscretization::rk4 : SuspensionDiscretization::euler;
 
-  params.check(c.mass_kg > 0.0, "mass_kg", "must be > 0 kg, got " + text_of(c.mass_kg));
-  params.check(c.gravity_m_s2 >= 0.0, "gravity_m_s2", "must be >= 0 m/s^2, got " + text_of(c.gravity_m_s2));
+  params.check(c.mass_kg > 0.0, "mass_kg", "must be > 0 kg, got " + number_text(c.mass_kg));
+  params.check(c.gravity_m_s2 >= 0.0, "gravity_m_s2", "must be >= 0 m/s^2, got " + number_text(c.gravity_m_s2));
   params.check(c.force_a_n_m4 >= 0.0, "force_a_n_m4",
-               "the magnet-core attraction a must be >= 0 N*m^4, got " + text_of(c.force_a_n_m4));
+               "the magnet-core attraction a must be >= 0 N*m^4, got " + number_text(c.force_a_n_m4));
   params.check(c.force_b_n_m2_per_a > 0.0, "force_b_n_m2_per_a",
                "the coil force constant b must be > 0 N*m^2/A (else the coil cannot act), got " +
-                   text_of(c.force_b_n_m2_per_a));
+                   number_text(c.force_b_n_m2_per_a));
   params.check(c.coil_decay_1_per_s > 0.0, "coil_decay_1_per_s",
-               "R/L must be > 0 1/s, got " + text_of(c.coil_decay_1_per_s));
+               "R/L must be > 0 1/s, got " + number_text(c.coil_decay_1_per_s));
   params.check(c.coil_gain_a_per_v_s > 0.0, "coil_gain_a_per_v_s",
-               "1/L must be > 0 A/(V*s), got " + text_of(c.coil_gain_a_per_v_s));
+               "1/L must be > 0 A/(V*s), got " + number_text(c.coil_gain_a_per_v_s));
   if (limits.size() == 2) {
     c.gap_limits_m = {limits[0], limits[1]};
     params.check(limits[0] > 0.0 && limits[0] < limits[1], "gap_limits_m",
-                 "expected [coil face, floor] with 0 < coil face < floor, got [" + text_of(limits[0]) + ", " +
-                     text_of(limits[1]) + "] m");
+                 "expected [coil face, floor] with 0 < coil face < floor, got [" + number_text(limits[0]) + ", " +
+                     number_text(limits[1]) + "] m");
   }
   params.check(c.initial_gap_m >= c.gap_limits_m[0] && c.initial_gap_m <= c.gap_limits_m[1], "initial_gap_m",
-               "must lie within gap_limits_m, got " + text_of(c.initial_gap_m) + " m");
+               "must lie within gap_limits_m, got " + number_text(c.initial_gap_m) + " m");
   params.check(c.substeps >= 1 && c.substeps <= 10000, "substeps",
                "must be 1 ... 10000, got " + std::to_string(c.substeps));
   if (!params.ok()) return Status::error("invalid parameters");
@@ -237,16 +232,8 @@ void Suspension::derivative(const double* x, double u, double* dx) const noexcep
   dx[kCurrent] = -config_.coil_decay_1_per_s * x[kCurrent] + config_.coil_gain_a_per_v_s * u;
 }
 
-void Suspension::rk4_step(double h, double u, double* x) const noexcept {
-  State k1{}, k2{}, k3{}, k4{}, tmp{};
-  derivative(x, u, k1.data());
-  for (std::size_t i = 0; i < kStateSize; ++i) tmp[i] = x[i] + 0.5 * h * k1[i];
-  derivative(tmp.data(), u, k2.data());
-  for (std::size_t i = 0; i < kStateSize; ++i) tmp[i] = x[i] + 0.5 * h * k2[i];
-  derivative(tmp.data(), u, k3.data());
-  for (std::size_t i = 0; i < kStateSize; ++i) tmp[i] = x[i] + h * k3[i];
-  derivative(tmp.data(), u, k4.data());
-  for (std::size_t i = 0; i < kStateSize; ++i) x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+void Suspension::rk4_step(double h, double u, State& x) const noexcept {
+  plants::rk4_step(x, h, [&](const State& at, State& slope) { derivative(at.data(), u, slope.data()); }, x);
 }
 
 void Suspension::enforce_stops(double* x) noexcept {
@@ -265,7 +252,7 @@ void Suspension::advance(double dt_s, const double* u) noexcept {
   held_voltage_v_ = u[kCoilVoltage];
   const double h = dt_s / config_.substeps;
   for (int s = 0; s < config_.substeps; ++s) {
-    rk4_step(h, held_voltage_v_, x_.data());
+    rk4_step(h, held_voltage_v_, x_);
     enforce_stops(x_.data());
   }
 }
@@ -280,15 +267,17 @@ void Suspension::state(double* x) const noexcept {
 }
 
 void Suspension::propagate(double dt_s, const double* x, const double* u, double* x_next) const noexcept {
-  for (std::size_t i = 0; i < kStateSize; ++i) x_next[i] = x[i];
+  State next;
+  std::copy_n(x, kStateSize, next.begin());
   if (config_.process_discretization == SuspensionDiscretization::rk4) {
-    rk4_step(dt_s, u[kCoilVoltage], x_next);
-    return;
+    rk4_step(dt_s, u[kCoilVoltage], next);
+  } else {
+    // eq. 33: x(k+1) = x(k) + t_s f(x(k), u(k)).
+    State dx{};
+    derivative(x, u[kCoilVoltage], dx.data());
+    for (std::size_t i = 0; i < kStateSize; ++i) next[i] += dt_s * dx[i];
   }
-  // eq. 33: x(k+1) = x(k) + t_s f(x(k), u(k)).
-  State dx{};
-  derivative(x, u[kCoilVoltage], dx.data());
-  for (std::size_t i = 0; i < kStateSize; ++i) x_next[i] += dt_s * dx[i];
+  std::copy(next.begin(), next.end(), x_next);
 }
 
 bool Suspension::process_jacobian(double dt_s, const double* x, const double* /*u*/, double* F) const noexcept {

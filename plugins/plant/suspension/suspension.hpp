@@ -139,7 +139,8 @@ class Suspension final : public PlantModel, public ProcessModel {
   [[nodiscard]] std::size_t stop_contacts() const noexcept { return stop_contacts_; }
 
  private:
-  void rk4_step(double h, double u, double* x) const noexcept;
+  /// One classical RK4 step of the ODE over h with u held, in place.
+  void rk4_step(double h, double u, State& x) const noexcept;
   /// Stops: the magnet cannot pass the coil face or the floor; it stops there (no bounce).
   void enforce_stops(double* x) noexcept;
 

@@ -2,20 +2,14 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
-#include <cstdio>
 #include <set>
 
 #include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins {
 
 namespace {
-
-std::string text_of(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%g", value);
-  return buffer;
-}
 
 /// R_BF = Rz(psi) Ry(theta) Rx(phi) and its partial derivatives (z-y-x, as plant.rigid_body6).
 struct Rotation {
@@ -76,9 +70,9 @@ Status CapacitiveGap::configure(Params& params) {
   c.nominal_gap_m = params.number("nominal_gap_m", 1e-3);
   c.zero_gap_m = params.number("zero_gap_m", 1e-3);
   c.sensitivity_v_per_m = params.number("sensitivity_v_per_m", 2e4);
-  params.check(c.nominal_gap_m > 0.0, "nominal_gap_m", "must be > 0 m, got " + text_of(c.nominal_gap_m));
+  params.check(c.nominal_gap_m > 0.0, "nominal_gap_m", "must be > 0 m, got " + number_text(c.nominal_gap_m));
   params.check(c.sensitivity_v_per_m != 0.0 && std::isfinite(c.sensitivity_v_per_m), "sensitivity_v_per_m",
-               "must be non-zero, got " + text_of(c.sensitivity_v_per_m));
+               "must be non-zero, got " + number_text(c.sensitivity_v_per_m));
 
   if (params.has("probes")) {
     std::set<std::string> names;

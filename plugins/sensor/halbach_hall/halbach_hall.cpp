@@ -4,7 +4,6 @@
 #include <cmath>
 #include <complex>
 #include <cstdint>
-#include <cstdio>
 #include <numbers>
 #include <set>
 #include <string>
@@ -12,6 +11,7 @@
 #include <vector>
 
 #include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins {
 
@@ -19,12 +19,6 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 constexpr double kMu0 = 4.0e-7 * kPi;  // vacuum permeability [T*m/A]; cancels in B = f(B_r)
-
-std::string text_of(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%g", value);
-  return buffer;
-}
 
 /// Samples per pitch when searching the maximum model error (enough for harmonics < 100).
 constexpr int kErrorSamplesPerPitch = 4096;
@@ -82,19 +76,19 @@ bool validate_halbach_config(const HalbachHallConfig& c, const HalbachConfigRepo
   auto finite = [](double v) { return std::isfinite(v); };
 
   if (!(finite(c.pitch_m) && c.pitch_m > 0.0))
-    top("pitch_m", "must be > 0 m, got " + text_of(c.pitch_m));
-  if (!(finite(c.gap_m) && c.gap_m >= 0.0)) top("gap_m", "must be >= 0 m, got " + text_of(c.gap_m));
+    top("pitch_m", "must be > 0 m, got " + number_text(c.pitch_m));
+  if (!(finite(c.gap_m) && c.gap_m >= 0.0)) top("gap_m", "must be >= 0 m, got " + number_text(c.gap_m));
   if (!(finite(c.magnet_thickness_m) && c.magnet_thickness_m > 0.0))
-    top("magnet_thickness_m", "must be > 0 m, got " + text_of(c.magnet_thickness_m));
+    top("magnet_thickness_m", "must be > 0 m, got " + number_text(c.magnet_thickness_m));
   if (!(finite(c.br_strong_t) && c.br_strong_t > 0.0))
-    top("br_strong_t", "must be > 0 T, got " + text_of(c.br_strong_t));
+    top("br_strong_t", "must be > 0 T, got " + number_text(c.br_strong_t));
   if (!(finite(c.br_weak_t) && c.br_weak_t >= 0.0))
-    top("br_weak_t", "must be >= 0 T, got " + text_of(c.br_weak_t));
+    top("br_weak_t", "must be >= 0 T, got " + number_text(c.br_weak_t));
   if (c.weak_ratio && !(finite(*c.weak_ratio) && *c.weak_ratio >= 0.0))
-    top("weak_ratio", "must be >= 0, got " + text_of(*c.weak_ratio));
+    top("weak_ratio", "must be >= 0, got " + number_text(*c.weak_ratio));
   if (!(finite(c.sensitivity_v_per_t) && c.sensitivity_v_per_t != 0.0))
     top("sensitivity_v_per_t", "must be a non-zero number of V/T, got " +
-                                   text_of(c.sensitivity_v_per_t));
+                                   number_text(c.sensitivity_v_per_t));
 
   if (c.harmonics.empty() || c.harmonics.size() > HalbachHall::kMaxHarmonics) {
     top("harmonics", "needs 1 to " + std::to_string(HalbachHall::kMaxHarmonics) +
@@ -127,7 +121,7 @@ bool validate_halbach_config(const HalbachHallConfig& c, const HalbachConfigRepo
     for (auto [key, v] : {std::pair<const char*, double>{"x_m", s.x_m}, {"y_m", s.y_m},
                           {"x_phase_m", s.x_phase_m}, {"y_phase_m", s.y_phase_m},
                           {"offset_v", s.offset_v[0]}, {"offset_v", s.offset_v[1]}}) {
-      if (!finite(v)) sensor(key, "must be a finite number, got " + text_of(v));
+      if (!finite(v)) sensor(key, "must be a finite number, got " + number_text(v));
     }
     if (!s.channels.empty() && s.channels.size() != 2) {
       sensor("channels", "needs exactly 2 names [a (-y aligned), b (-x aligned)], got " +
@@ -160,7 +154,7 @@ bool validate_halbach_config(const HalbachHallConfig& c, const HalbachConfigRepo
       for (auto [key, v] : {std::pair<const char*, double>{"c_v", f.c_v},
                             {"alpha_v", f.alpha_v}, {"beta_v", f.beta_v}}) {
         if (!finite(v))
-          fail(HalbachConfigScope::coefficient, i, key, "must be a finite number, got " + text_of(v));
+          fail(HalbachConfigScope::coefficient, i, key, "must be a finite number, got " + number_text(v));
       }
     }
   }

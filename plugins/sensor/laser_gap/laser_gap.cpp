@@ -2,21 +2,15 @@
 
 #include <Eigen/Dense>
 #include <cmath>
-#include <cstdio>
 #include <set>
 #include <string>
 
 #include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins {
 
 namespace {
-
-std::string text_of(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%g", value);
-  return buffer;
-}
 
 /// H of the channels at the zero pose: row i = [1, y_i, -x_i] (times the sensitivity).
 Eigen::MatrixXd geometry_matrix(const std::vector<LaserSpot>& spots) {
@@ -37,7 +31,7 @@ LaserGap::LaserGap() : state_elements_{{"z", "m"}, {"theta_x", "rad"}, {"theta_y
 Status LaserGap::configure(Params& params) {
   const double sensitivity = params.number("sensitivity_v_per_m");
   params.check(std::isfinite(sensitivity) && sensitivity != 0.0, "sensitivity_v_per_m",
-               "must be non-zero and finite (its sign sets the direction), got " + text_of(sensitivity));
+               "must be non-zero and finite (its sign sets the direction), got " + number_text(sensitivity));
   std::vector<LaserSpot> spots;
   std::vector<Params> items = params.items("sensors");
   if (items.size() < 3 || items.size() > kMaxSensors) {
@@ -63,8 +57,8 @@ Status LaserGap::configure(Params& params) {
     const double largest = svd.singularValues()(0);
     if (!(smallest > 1e-9 * largest)) {
       params.fail("sensors", "the spots lie on one line (or coincide): z, theta_x and theta_y cannot all be "
-                             "resolved (singular values of [1, y, -x]: " + text_of(largest) + ", " +
-                             text_of(svd.singularValues()(1)) + ", " + text_of(smallest) + ")");
+                             "resolved (singular values of [1, y, -x]: " + number_text(largest) + ", " +
+                             number_text(svd.singularValues()(1)) + ", " + number_text(smallest) + ")");
     }
   }
   if (!params.ok()) return Status::error("invalid parameters");

@@ -1,23 +1,13 @@
 #include "sincos_encoder.hpp"
 
 #include <cmath>
-#include <cstdio>
 #include <numbers>
 #include <vector>
 
 #include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins {
-
-namespace {
-
-std::string text_of(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%g", value);
-  return buffer;
-}
-
-}  // namespace
 
 SincosEncoder::SincosEncoder() : state_elements_{{"x", "m"}} {
   const Status applied = apply(SincosEncoderConfig{});
@@ -43,14 +33,14 @@ Status SincosEncoder::configure(Params& params) {
 
   // Every check at its own key, so one run reports every problem.
   params.check(std::isfinite(c.pitch_m) && c.pitch_m > 0.0, "pitch_m",
-               "the scale period must be > 0 m (Table 1: 4e-6), got " + text_of(c.pitch_m));
+               "the scale period must be > 0 m (Table 1: 4e-6), got " + number_text(c.pitch_m));
   params.check(std::isfinite(c.amplitude_v) && c.amplitude_v > 0.0, "amplitude_v",
-               "the signal amplitude V must be > 0 V (Table 1: 1 V), got " + text_of(c.amplitude_v));
+               "the signal amplitude V must be > 0 V (Table 1: 1 V), got " + number_text(c.amplitude_v));
   params.check(std::isfinite(c.amplitude_ratio) && c.amplitude_ratio > 0.0, "amplitude_ratio",
-               "the cos/sin amplitude ratio must be > 0 (ideal: 1), got " + text_of(c.amplitude_ratio));
+               "the cos/sin amplitude ratio must be > 0 (ideal: 1), got " + number_text(c.amplitude_ratio));
   params.check(std::isfinite(c.quadrature_error_rad) && std::abs(c.quadrature_error_rad) < 0.5 * std::numbers::pi,
                "quadrature_error_rad",
-               "the phase error must be within +-pi/2 rad (ideal: 0), got " + text_of(c.quadrature_error_rad));
+               "the phase error must be within +-pi/2 rad (ideal: 0), got " + number_text(c.quadrature_error_rad));
   params.check(std::isfinite(c.offset_v[0]) && std::isfinite(c.offset_v[1]), "offset_v",
                "offsets must be finite");
   params.check(c.channel_names[0] != c.channel_names[1] && !c.channel_names[0].empty() &&

@@ -12,11 +12,14 @@
 
 #include <unistd.h>
 
+#include "io_testing.hpp"
 #include "lode/record/hdf5_recorder.hpp"
 #include "lode/sdk/testing/harness.hpp"
 #include "lode/sdk/testing/scratch_dir.hpp"
 
 namespace {
+
+using lode::plugins::boards::testing::refusal_of;
 
 
 std::string temp_file(const std::string& name) { return lode::testing::scratch_path(name); }
@@ -88,44 +91,33 @@ TEST(IoReplay, DeclaresTheRecordedSeriesAndPlaysThemBitForBit) {
 }
 
 TEST(IoReplay, AGapIsALocatedError) {
-  const auto path = make_recording("gap.h5", 40, 17);
-  lode::testing::BlockHarness h("io.replay", "recording: " + path + "\nblock: stage", 800.0);
-  ASSERT_FALSE(h.configure());
-  const auto d = h.diagnostics();
+  const auto d = refusal_of("io.replay", "recording: " + make_recording("gap.h5", 40, 17) + "\nblock: stage", 800.0);
   EXPECT_NE(d.find("blocks.dut.recording"), std::string::npos) << d;
   EXPECT_NE(d.find("stage.signals"), std::string::npos) << d;
   EXPECT_NE(d.find("gap: row 17 is cycle 18, expected 17"), std::string::npos) << d;
 }
 
 TEST(IoReplay, SeriesOfDifferentLengthsAreALocatedError) {
-  const auto path = make_recording("short.h5", 40, -1, 3);
-  lode::testing::BlockHarness h("io.replay", "recording: " + path + "\nblock: stage", 800.0);
-  ASSERT_FALSE(h.configure());
-  const auto d = h.diagnostics();
+  const auto d =
+      refusal_of("io.replay", "recording: " + make_recording("short.h5", 40, -1, 3) + "\nblock: stage", 800.0);
   EXPECT_NE(d.find("blocks.dut.recording"), std::string::npos) << d;
   EXPECT_NE(d.find("has 40 samples, 'stage.truth' has 37"), std::string::npos) << d;
 }
 
 TEST(IoReplay, MissingBlockNamesTheRecordedBlocks) {
-  const auto path = make_recording("noblock.h5", 10);
-  lode::testing::BlockHarness h("io.replay", "recording: " + path + "\nblock: board", 800.0);
-  ASSERT_FALSE(h.configure());
-  const auto d = h.diagnostics();
+  const auto d = refusal_of("io.replay", "recording: " + make_recording("noblock.h5", 10) + "\nblock: board", 800.0);
   EXPECT_NE(d.find("blocks.dut.block"), std::string::npos) << d;
   EXPECT_NE(d.find("no series of block 'board' (blocks recorded: kf, stage)"), std::string::npos) << d;
 }
 
 TEST(IoReplay, DefaultBlockIsItsOwnName) {
-  const auto path = make_recording("default.h5", 10);
-  lode::testing::BlockHarness h("io.replay", "recording: " + path, 800.0);
-  ASSERT_FALSE(h.configure());  // the harness names the block "dut", which was not recorded
-  EXPECT_NE(h.diagnostics().find("no series of block 'dut'"), std::string::npos) << h.diagnostics();
+  // The harness names the block "dut", which was not recorded.
+  const auto d = refusal_of("io.replay", "recording: " + make_recording("default.h5", 10), 800.0);
+  EXPECT_NE(d.find("no series of block 'dut'"), std::string::npos) << d;
 }
 
 TEST(IoReplay, MissingFileIsALocatedError) {
-  lode::testing::BlockHarness h("io.replay", "recording: /nonexistent/run.h5\nblock: stage", 800.0);
-  ASSERT_FALSE(h.configure());
-  const auto d = h.diagnostics();
+  const auto d = refusal_of("io.replay", "recording: /nonexistent/run.h5\nblock: stage", 800.0);
   EXPECT_NE(d.find("blocks.dut.recording"), std::string::npos) << d;
   EXPECT_NE(d.find("cannot read recording '/nonexistent/run.h5'"), std::string::npos) << d;
 }

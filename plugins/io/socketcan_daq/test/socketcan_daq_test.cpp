@@ -20,6 +20,7 @@
 #include <thread>
 #include <vector>
 
+#include "io_testing.hpp"
 #include "lode/sdk/testing/allocation_counter.hpp"
 #include "lode/sdk/testing/harness.hpp"
 
@@ -27,6 +28,7 @@ namespace {
 
 using lode::StepStatus;
 using lode::can_daq_emu::DaqNode;
+using lode::plugins::boards::testing::refusal_of;
 using lode::testing::BlockHarness;
 namespace co = lode::hal::canopen;
 
@@ -377,10 +379,8 @@ TEST(SocketCanDaq, ConfigurationErrorsNameTheField) {
       {"interface: vcan0\nnode_id: 5\ntpdo:\n  - {pdo: 1, entries: [{name: a1, scale: 0}]}\n", "scale"},
   };
   for (const auto& c : cases) {
-    BlockHarness h("io.socketcan_daq", c.params, 1000.0);
-    h.feed("command", {{"fx", "N"}});
-    EXPECT_FALSE(h.configure()) << c.params;
-    EXPECT_NE(h.diagnostics().find(c.expect), std::string::npos) << h.diagnostics();
+    const std::string d = refusal_of("io.socketcan_daq", c.params, 1000.0, {{"fx", "N"}});
+    EXPECT_NE(d.find(c.expect), std::string::npos) << d;
   }
 }
 

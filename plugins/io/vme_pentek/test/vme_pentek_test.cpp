@@ -22,11 +22,13 @@
 
 #include "lode/hal/analog.hpp"
 #include "lode/sdk/testing/allocation_counter.hpp"
+#include "io_testing.hpp"
 #include "lode/sdk/testing/harness.hpp"
 
 namespace {
 
 using lode::StepStatus;
+using lode::plugins::boards::testing::refusal_of;
 using lode::testing::BlockHarness;
 using lode::vme::PentekEmulator;
 
@@ -164,16 +166,23 @@ void expect_outputs_safe(Rig& rig) {
   EXPECT_NEAR(code_value(dac[1]), 5.0, 10.0 * 20.0 / 65536.0);
 }
 
-TEST(VmePentekFaults, ABoardThatStopsAnsweringIsDetectedWithinTheTimeoutAndOutputsGoSafe) {
+/// `fault` set on a rig with the 20 ms conversion timeout, after healthy cycles: the cycle that
+/// waits the timeout out faults with `reason`, and the outputs go safe.
+void expect_timeout_trip(PentekEmulator::Fault fault, const char* what, const std::string& reason) {
   Rig rig(20000.0);  // 20 ms: generous, the emulator thread shares a loaded machine
   ASSERT_TRUE(rig.ok);
   ASSERT_EQ(run_until_fault(rig, 20).reason, "");  // healthy first
-  rig.emulator->set_fault(PentekEmulator::Fault::silent);
+  rig.emulator->set_fault(fault);
   const Trip trip = run_until_fault(rig);
-  std::printf("silent board: '%s' after %.2f ms (timeout 20 ms)\n", trip.reason.c_str(), trip.detect_ms);
-  EXPECT_EQ(trip.reason, "the board did not take the trigger within conversion_timeout_us (not answering)");
+  std::printf("%s: '%s' after %.2f ms (timeout 20 ms)\n", what, trip.reason.c_str(), trip.detect_ms);
+  EXPECT_EQ(trip.reason, reason);
   EXPECT_GE(trip.detect_ms, 20.0);
   expect_outputs_safe(rig);
+}
+
+TEST(VmePentekFaults, ABoardThatStopsAnsweringIsDetectedWithinTheTimeoutAndOutputsGoSafe) {
+  expect_timeout_trip(PentekEmulator::Fault::silent, "silent board",
+                      "the board did not take the trigger within conversion_timeout_us (not answering)");
 }
 
 TEST(VmePentekFaults, ASilentBoardTripsTheTriggerTimeoutWhenNoDacLoadIsPending) {
@@ -204,15 +213,8 @@ TEST(VmePentekFaults, AnErrorBitIsAFaultNamingIt) {
 }
 
 TEST(VmePentekFaults, AConversionThatNeverCompletesTimesOut) {
-  Rig rig(20000.0);
-  ASSERT_TRUE(rig.ok);
-  ASSERT_EQ(run_until_fault(rig, 20).reason, "");
-  rig.emulator->set_fault(PentekEmulator::Fault::never_complete);
-  const Trip trip = run_until_fault(rig);
-  std::printf("never completes: '%s' after %.2f ms (timeout 20 ms)\n", trip.reason.c_str(), trip.detect_ms);
-  EXPECT_EQ(trip.reason, "conversion did not complete within conversion_timeout_us (BUSY)");
-  EXPECT_GE(trip.detect_ms, 20.0);
-  expect_outputs_safe(rig);
+  expect_timeout_trip(PentekEmulator::Fault::never_complete, "never completes",
+                      "conversion did not complete within conversion_timeout_us (BUSY)");
 }
 
 TEST(VmePentekFaults, ABusErrorReadsAllOnes) {
@@ -364,10 +366,8 @@ TEST(VmePentek, ConfigurationErrorsNameTheField) {
       {"device: x\nconversion_timeout_us: 0\nadc:\n  - {name: a1}\n", "conversion_timeout_us"},
   };
   for (const auto& c : cases) {
-    BlockHarness h("io.vme_pentek", c.params, 1000.0);
-    h.feed("command", {{"fx", "V"}});
-    EXPECT_FALSE(h.configure()) << c.params;
-    EXPECT_NE(h.diagnostics().find(c.expect), std::string::npos) << h.diagnostics();
+    const std::string d = refusal_of("io.vme_pentek", c.params, 1000.0, {{"fx", "V"}});
+    EXPECT_NE(d.find(c.expect), std::string::npos) << d;
   }
 }
 

@@ -10,32 +10,23 @@
 #include <string>
 
 #include "lode/sdk/testing/harness.hpp"
+#include "plant_testing.hpp"
 
 namespace {
 
 using lode::plugins::EncoderStage;
 using lode::plugins::EncoderStageConfig;
+using lode::plugins::plants::testing::element_list;
+using lode::plugins::plants::testing::state_of;
 
 constexpr double kDt = 1.0 / 20000.0;  // Table 1: 20 kHz
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 
-std::array<double, EncoderStage::kStateSize> state_of(const EncoderStage& stage) {
-  std::array<double, EncoderStage::kStateSize> x{};
-  stage.state(x.data());
-  return x;
-}
-
 TEST(EncoderStage, HasNoInputsAndOutputsPositionAndVelocity) {
   const EncoderStage stage;
   EXPECT_TRUE(stage.inputs().empty());
-  ASSERT_EQ(stage.outputs().size(), 2u);
-  EXPECT_EQ(stage.outputs()[0].name, "x");
-  EXPECT_EQ(stage.outputs()[0].unit, "m");
-  EXPECT_EQ(stage.outputs()[1].name, "v");
-  EXPECT_EQ(stage.outputs()[1].unit, "m/s");
-  ASSERT_EQ(stage.state_elements().size(), 3u);
-  EXPECT_EQ(stage.state_elements()[2].name, "a");
-  EXPECT_EQ(stage.state_elements()[2].unit, "m/s^2");
+  EXPECT_EQ(element_list(stage.outputs()), "x [m], v [m/s]");
+  EXPECT_EQ(element_list(stage.state_elements()), "x [m], v [m/s], a [m/s^2]");
 }
 
 TEST(EncoderStage, SinusoidIsSampledExactly) {

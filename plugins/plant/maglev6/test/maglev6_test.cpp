@@ -13,35 +13,23 @@
 
 #include "lode/sdk/testing/allocation_counter.hpp"
 #include "lode/sdk/testing/harness.hpp"
+#include "plant_testing.hpp"
 
 namespace lode::plugins {
 namespace {
 
-constexpr double kDt = 1.0 / 800.0;  // the default rate (the paper gives none)
+using plants::testing::element_list;
+using plants::testing::state_of;
 
-std::array<double, Maglev6::kStateSize> state_of(const Maglev6& plant) {
-  std::array<double, Maglev6::kStateSize> x{};
-  plant.state(x.data());
-  return x;
-}
+constexpr double kDt = 1.0 / 800.0;  // the default rate (the paper gives none)
 
 TEST(Maglev6, DeclaresPortsAndThePapersParameters) {
   Maglev6 plant;
-  ASSERT_EQ(plant.inputs().size(), 6u);
-  EXPECT_EQ(plant.inputs()[0].name, "iq_a");
-  EXPECT_EQ(plant.inputs()[5].name, "id_c");
-  for (const Element& e : plant.inputs()) EXPECT_EQ(e.unit, "A");
-  const Elements& y = plant.outputs();
-  ASSERT_EQ(y.size(), 6u);
-  const char* names[] = {"x", "y", "theta_z", "z", "theta_x", "theta_y"};
-  const char* units[] = {"m", "m", "rad", "m", "rad", "rad"};
-  for (std::size_t i = 0; i < 6; ++i) {
-    EXPECT_EQ(y[i].name, names[i]);
-    EXPECT_EQ(y[i].unit, units[i]);
-  }
-  ASSERT_EQ(plant.state_elements().size(), 12u);
-  EXPECT_EQ(plant.state_elements()[8].name, "omega_z");
-  EXPECT_EQ(plant.state_elements()[8].unit, "rad/s");
+  EXPECT_EQ(element_list(plant.inputs()), "iq_a [A], iq_b [A], iq_c [A], id_a [A], id_b [A], id_c [A]");
+  const std::string pose = "x [m], y [m], theta_z [rad], z [m], theta_x [rad], theta_y [rad]";
+  EXPECT_EQ(element_list(plant.outputs()), pose);
+  EXPECT_EQ(element_list(plant.state_elements()),
+            pose + ", vx [m/s], vy [m/s], omega_z [rad/s], vz [m/s], omega_x [rad/s], omega_y [rad/s]");
   EXPECT_EQ(&plant.process_state(), &plant.state_elements());
   EXPECT_EQ(plant.config().mass_kg, 1.52);
   EXPECT_EQ(plant.config().inertia_xx_kg_m2, 0.0037);

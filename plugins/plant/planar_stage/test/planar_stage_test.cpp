@@ -15,40 +15,23 @@
 
 #include "lode/sdk/testing/harness.hpp"
 #include "lode/sdk/testing/require.hpp"
+#include "plant_testing.hpp"
 
 namespace {
 
 using lode::plugins::PlanarStage;
 using lode::plugins::PlanarStageConfig;
+using lode::plugins::plants::testing::element_list;
+using lode::plugins::plants::testing::state_of;
 
 constexpr double kDt = 1.0 / 800.0;  // the thesis's 800 Hz loop
 
-std::array<double, PlanarStage::kStateSize> state_of(const PlanarStage& stage) {
-  std::array<double, PlanarStage::kStateSize> x{};
-  stage.state(x.data());
-  return x;
-}
-
 TEST(PlanarStage, DeclaresPortsWithSiUnits) {
   PlanarStage stage;
-  const lode::Elements& u = stage.inputs();
-  ASSERT_EQ(u.size(), 3u);
-  EXPECT_EQ(u[0].name, "fx");
-  EXPECT_EQ(u[0].unit, "N");
-  EXPECT_EQ(u[1].name, "fy");
-  EXPECT_EQ(u[1].unit, "N");
-  EXPECT_EQ(u[2].name, "tz");
-  EXPECT_EQ(u[2].unit, "N*m");
-  const lode::Elements& y = stage.outputs();
-  ASSERT_EQ(y.size(), 3u);
-  EXPECT_EQ(y[2].name, "theta_z");
-  EXPECT_EQ(y[2].unit, "rad");
-  const lode::Elements& s = stage.state_elements();
-  ASSERT_EQ(s.size(), 6u);
-  EXPECT_EQ(s[3].name, "vx");
-  EXPECT_EQ(s[3].unit, "m/s");
-  EXPECT_EQ(s[5].name, "omega_z");
-  EXPECT_EQ(s[5].unit, "rad/s");
+  EXPECT_EQ(element_list(stage.inputs()), "fx [N], fy [N], tz [N*m]");
+  EXPECT_EQ(element_list(stage.outputs()), "x [m], y [m], theta_z [rad]");
+  EXPECT_EQ(element_list(stage.state_elements()),
+            "x [m], y [m], theta_z [rad], vx [m/s], vy [m/s], omega_z [rad/s]");
   // Thesis values by default (eq. 4.44-4.47).
   EXPECT_EQ(stage.config().mass_kg, 6.20);
   EXPECT_EQ(stage.config().inertia_kg_m2, 0.054);

@@ -15,20 +15,17 @@
 
 #include "lode/sdk/testing/harness.hpp"
 #include "lode/sdk/testing/require.hpp"
+#include "plant_testing.hpp"
 
 namespace {
 
 using lode::plugins::RigidBody6;
 using lode::plugins::RigidBody6Config;
+using lode::plugins::plants::testing::element_list;
+using lode::plugins::plants::testing::state_of;
 namespace rb = lode::plugins::rigid_body6;
 
 constexpr double kDt = 4e-4;  // the paper's 2.5 kHz loop
-
-rb::State state_of(const RigidBody6& body) {
-  rb::State x{};
-  body.state(x.data());
-  return x;
-}
 
 std::array<double, 3> fixed_frame(const rb::State& x, std::size_t first) {
   const rb::Matrix3 r = rb::rotation_body_to_fixed(x[rb::kPhi], x[rb::kTheta], x[rb::kPsi]);
@@ -41,20 +38,12 @@ std::array<double, 3> fixed_frame(const rb::State& x, std::size_t first) {
 
 TEST(RigidBody6, DeclaresPortsWithSiUnitsAndTable1Defaults) {
   RigidBody6 body;
-  ASSERT_EQ(body.inputs().size(), 6u);
-  EXPECT_EQ(body.inputs()[0].name, "fx");
-  EXPECT_EQ(body.inputs()[0].unit, "N");
-  EXPECT_EQ(body.inputs()[5].name, "tz");
-  EXPECT_EQ(body.inputs()[5].unit, "N*m");
-  ASSERT_EQ(body.outputs().size(), 12u);
-  EXPECT_EQ(body.outputs()[3].name, "phi");
-  EXPECT_EQ(body.outputs()[3].unit, "rad");
-  EXPECT_EQ(body.outputs()[6].name, "fx");  // readback of the applied force
-  ASSERT_EQ(body.state_elements().size(), 12u);
-  EXPECT_EQ(body.state_elements()[6].name, "u");
-  EXPECT_EQ(body.state_elements()[6].unit, "m/s");
-  EXPECT_EQ(body.state_elements()[11].name, "r");
-  EXPECT_EQ(body.state_elements()[11].unit, "rad/s");
+  const std::string pose = "x [m], y [m], z [m], phi [rad], theta [rad], psi [rad]";
+  const std::string wrench = "fx [N], fy [N], fz [N], tx [N*m], ty [N*m], tz [N*m]";
+  EXPECT_EQ(element_list(body.inputs()), wrench);
+  EXPECT_EQ(element_list(body.outputs()), pose + ", " + wrench);  // the pose, then the applied force read back
+  EXPECT_EQ(element_list(body.state_elements()),
+            pose + ", u [m/s], v [m/s], w [m/s], p [rad/s], q [rad/s], r [rad/s]");
   // The process model has the same layout.
   EXPECT_EQ(body.process_state().size(), 12u);
   EXPECT_EQ(body.process_inputs().size(), 6u);

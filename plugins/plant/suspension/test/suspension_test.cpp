@@ -14,12 +14,15 @@
 
 #include "lode/sdk/testing/harness.hpp"
 #include "lode/sdk/testing/require.hpp"
+#include "plant_testing.hpp"
 
 namespace {
 
 using lode::plugins::Suspension;
 using lode::plugins::SuspensionConfig;
 using lode::plugins::SuspensionDiscretization;
+using lode::plugins::plants::testing::element_list;
+using lode::plugins::plants::testing::state_of;
 
 constexpr double kDt = 0.5e-3;  // t_s of the paper
 
@@ -146,6 +149,15 @@ TEST(SuspensionPhysics, CoilConstantsImpliedByEq32) {
   EXPECT_NEAR(out.find("coil_static_gain_a_per_v")->as_number(), 0.372, 0.001);
 }
 
+/// Advances `s` with `u` held for steps k = 1 ... steps; check(k, t_k, state) after each.
+template <typename Check>
+void advance_held(Suspension& s, double u, int steps, const Check& check) {
+  for (int k = 1; k <= steps; ++k) {
+    s.advance(kDt, &u);
+    check(k, k * kDt, state_of(s));
+  }
+}
+
 TEST(SuspensionPhysics, CoilCurrentFollowsTheFirstOrderClosedForm) {
   SuspensionConfig c = pipeline_config();
   c.initial_current_a = 0.0;
@@ -155,14 +167,10 @@ TEST(SuspensionPhysics, CoilCurrentFollowsTheFirstOrderClosedForm) {
   Suspension s;
   s.apply(c);
   const double u = 2.0;
-  for (int k = 1; k <= 40; ++k) {
-    s.advance(kDt, &u);
-    std::array<double, 3> x{};
-    s.state(x.data());
-    const double t = k * kDt;
+  advance_held(s, u, 40, [&](int k, double t, const Suspension::State& x) {
     const double exact = 61.61 / 165.6 * u * (1.0 - std::exp(-165.6 * t));
     EXPECT_NEAR(x[2], exact, 1e-9 * exact) << k;
-  }
+  });
   std::array<double, 2> y{};
   s.output(y.data());
   EXPECT_EQ(y[1], u);  // the held voltage is read back
@@ -175,15 +183,10 @@ TEST(SuspensionPhysics, FreeFallIsExact) {
   c.initial_current_a = 0.0;
   Suspension s;
   s.apply(c);
-  const double u = 0.0;
-  for (int k = 1; k <= 100; ++k) {
-    s.advance(kDt, &u);
-    std::array<double, 3> x{};
-    s.state(x.data());
-    const double t = k * kDt;
+  advance_held(s, 0.0, 100, [](int k, double t, const Suspension::State& x) {
     EXPECT_NEAR(x[0], 0.026 + 0.5 * 9.81 * t * t, 1e-15) << k;
     EXPECT_NEAR(x[1], 9.81 * t, 1e-13) << k;
-  }
+  });
   EXPECT_EQ(s.stop_contacts(), 0u);
 }
 
@@ -192,8 +195,7 @@ TEST(SuspensionPhysics, EndStopsCatchTheMagnet) {
   s.apply(pipeline_config());
   const double off = 0.0;  // coil off: the magnet falls to the floor
   for (int k = 0; k < 2000; ++k) s.advance(kDt, &off);
-  std::array<double, 3> x{};
-  s.state(x.data());
+  auto x = state_of(s);
   EXPECT_EQ(x[0], 0.050);
   EXPECT_EQ(x[1], 0.0);
   EXPECT_GT(s.stop_contacts(), 0u);
@@ -201,7 +203,7 @@ TEST(SuspensionPhysics, EndStopsCatchTheMagnet) {
   EXPECT_EQ(s.stop_contacts(), 0u);
   const double full = 3.0;  // full attraction: it snaps to the coil face
   for (int k = 0; k < 2000; ++k) s.advance(kDt, &full);
-  s.state(x.data());
+  x = state_of(s);
   EXPECT_EQ(x[0], 0.012);
   EXPECT_TRUE(std::isfinite(x[1]) && std::isfinite(x[2]));
 }
@@ -279,16 +281,9 @@ TEST(SuspensionProcess, Rk4DiscretisationHasNoAnalyticJacobian) {
 TEST(SuspensionPlant, ElementsAndReset) {
   Suspension s;
   s.apply(pipeline_config());
-  ASSERT_EQ(s.inputs().size(), 1u);
-  EXPECT_EQ(s.inputs()[0].name, "coil_voltage");
-  EXPECT_EQ(s.inputs()[0].unit, "V");
-  ASSERT_EQ(s.outputs().size(), 2u);
-  EXPECT_EQ(s.outputs()[0].name, "gap");
-  EXPECT_EQ(s.outputs()[0].unit, "m");
-  EXPECT_EQ(s.outputs()[1].name, "coil_voltage");
-  ASSERT_EQ(s.state_elements().size(), 3u);
-  EXPECT_EQ(s.state_elements()[1].unit, "m/s");
-  EXPECT_EQ(s.state_elements()[2].unit, "A");
+  EXPECT_EQ(element_list(s.inputs()), "coil_voltage [V]");
+  EXPECT_EQ(element_list(s.outputs()), "gap [m], coil_voltage [V]");
+  EXPECT_EQ(element_list(s.state_elements()), "gap [m], velocity [m/s], current [A]");
   EXPECT_EQ(&s.process_state(), &s.state_elements());
   // Starts at rest with the hold current, and the voltage that holds it read back.
   std::array<double, 2> y{};
@@ -298,8 +293,7 @@ TEST(SuspensionPlant, ElementsAndReset) {
   const double u = 0.7;
   s.advance(kDt, &u);
   s.reset();
-  std::array<double, 3> x{};
-  s.state(x.data());
+  const auto x = state_of(s);
   EXPECT_EQ(x[0], 0.026);
   EXPECT_EQ(x[1], 0.0);
   EXPECT_NEAR(x[2], s.hold_current_a(0.026), 1e-15);

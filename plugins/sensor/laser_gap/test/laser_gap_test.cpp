@@ -96,59 +96,48 @@ TEST(LaserGap, PoseNoisePerVoltFollowsTheGeometry) {
 
 const Elements kCommand = {{"iq_a", "A"}, {"iq_b", "A"}, {"iq_c", "A"}, {"id_a", "A"}, {"id_b", "A"}, {"id_c", "A"}};
 
-TEST(LaserGap, LoadsFromYamlAndRejectsBadGeometry) {
-  {
-    const std::string models =
-        "stage: {plugin: plant.maglev6, initial: [0, 0, 0, 2.0e-6, 0, 0]}\n"
-        "laser:\n  plugin: sensor.laser_gap\n  sensitivity_v_per_m: 1.0e4\n  sensors:\n"
-        "    - {name: L1, x_m: 0.05, y_m: 0.0, offset_v: 0.5}\n"
-        "    - {name: L2, x_m: -0.025, y_m: 0.0433}\n"
-        "    - {name: L3, x_m: -0.025, y_m: -0.0433}\n";
-    lode::testing::BlockHarness h("io.sim", "plant: stage\nsensors: laser\nnoise_std_v: 0\nadc_bits: 0", 800.0, models);
-    h.feed("command", kCommand);
-    ASSERT_TRUE(h.configure()) << h.diagnostics();
-    ASSERT_TRUE(h.activate());
-    h.step();
-    EXPECT_NEAR(h.output("signals")[0], 0.5 + 0.02, 1e-12);
-    EXPECT_NEAR(h.output("signals")[2], 0.02, 1e-12);
-    EXPECT_EQ(h.output_elements("signals")[1].name, "L2");
-  }
-  {
-    const std::string models =
-        "stage: {plugin: plant.maglev6}\n"
-        "laser:\n  plugin: sensor.laser_gap\n  sensitivity_v_per_m: 0\n  sensors:\n"
-        "    - {name: L1, x_m: 0.0, y_m: 0.0}\n"
-        "    - {name: L1, x_m: 0.01, y_m: 0.01}\n"
-        "    - {name: L3, x_m: 0.02, y_m: 0.02}\n";
-    lode::testing::BlockHarness h("io.sim", "plant: stage\nsensors: laser", 800.0, models);
-    h.feed("command", kCommand);
-    EXPECT_FALSE(h.configure());
-    const std::string d = h.diagnostics();
-    EXPECT_NE(d.find("sensitivity_v_per_m"), std::string::npos) << d;
-    EXPECT_NE(d.find("duplicate sensor name"), std::string::npos) << d;
-  }
-  {
-    const std::string models =
-        "stage: {plugin: plant.maglev6}\n"
-        "laser:\n  plugin: sensor.laser_gap\n  sensitivity_v_per_m: 1.0e4\n  sensors:\n"
-        "    - {name: L1, x_m: 0.0, y_m: 0.0}\n"
-        "    - {name: L2, x_m: 0.01, y_m: 0.01}\n"
-        "    - {name: L3, x_m: 0.02, y_m: 0.02}\n";
-    lode::testing::BlockHarness h("io.sim", "plant: stage\nsensors: laser", 800.0, models);
-    h.feed("command", kCommand);
-    EXPECT_FALSE(h.configure());
-    EXPECT_NE(h.diagnostics().find("one line"), std::string::npos) << h.diagnostics();
-  }
-  {
-    const std::string models =
-        "stage: {plugin: plant.maglev6}\n"
-        "laser:\n  plugin: sensor.laser_gap\n  sensitivity_v_per_m: 1.0e4\n  sensors:\n"
-        "    - {name: L1, x_m: 0.0, y_m: 0.0}\n";
-    lode::testing::BlockHarness h("io.sim", "plant: stage\nsensors: laser", 800.0, models);
-    h.feed("command", kCommand);
-    EXPECT_FALSE(h.configure());
-    EXPECT_NE(h.diagnostics().find("needs 3 to 8"), std::string::npos) << h.diagnostics();
-  }
+/// The `laser` model's YAML: this sensitivity and one `sensors` entry per spot ("{name: ...}").
+std::string laser_model(const std::string& sensitivity, const std::vector<std::string>& spots) {
+  std::string yaml = "laser:\n  plugin: sensor.laser_gap\n  sensitivity_v_per_m: " + sensitivity + "\n  sensors:\n";
+  for (const std::string& spot : spots) yaml += "    - " + spot + "\n";
+  return yaml;
+}
+
+/// What io.sim reports when it refuses a plant.maglev6 read by `laser` (a laser_model()).
+std::string refusal_of(const std::string& laser) {
+  lode::testing::BlockHarness h("io.sim", "plant: stage\nsensors: laser", 800.0,
+                                "stage: {plugin: plant.maglev6}\n" + laser);
+  h.feed("command", kCommand);
+  EXPECT_FALSE(h.configure()) << laser;
+  return h.diagnostics();
+}
+
+TEST(LaserGap, LoadsFromYaml) {
+  const std::string models =
+      "stage: {plugin: plant.maglev6, initial: [0, 0, 0, 2.0e-6, 0, 0]}\n" +
+      laser_model("1.0e4", {"{name: L1, x_m: 0.05, y_m: 0.0, offset_v: 0.5}", "{name: L2, x_m: -0.025, y_m: 0.0433}",
+                            "{name: L3, x_m: -0.025, y_m: -0.0433}"});
+  lode::testing::BlockHarness h("io.sim", "plant: stage\nsensors: laser\nnoise_std_v: 0\nadc_bits: 0", 800.0, models);
+  h.feed("command", kCommand);
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  h.step();
+  EXPECT_NEAR(h.output("signals")[0], 0.5 + 0.02, 1e-12);
+  EXPECT_NEAR(h.output("signals")[2], 0.02, 1e-12);
+  EXPECT_EQ(h.output_elements("signals")[1].name, "L2");
+}
+
+TEST(LaserGap, RejectsBadGeometry) {
+  const std::string l3 = "{name: L3, x_m: 0.02, y_m: 0.02}";
+  const std::string duplicate =
+      refusal_of(laser_model("0", {"{name: L1, x_m: 0.0, y_m: 0.0}", "{name: L1, x_m: 0.01, y_m: 0.01}", l3}));
+  EXPECT_NE(duplicate.find("sensitivity_v_per_m"), std::string::npos) << duplicate;
+  EXPECT_NE(duplicate.find("duplicate sensor name"), std::string::npos) << duplicate;
+  const std::string collinear =
+      refusal_of(laser_model("1.0e4", {"{name: L1, x_m: 0.0, y_m: 0.0}", "{name: L2, x_m: 0.01, y_m: 0.01}", l3}));
+  EXPECT_NE(collinear.find("one line"), std::string::npos) << collinear;
+  const std::string too_few = refusal_of(laser_model("1.0e4", {"{name: L1, x_m: 0.0, y_m: 0.0}"}));
+  EXPECT_NE(too_few.find("needs 3 to 8"), std::string::npos) << too_few;
 }
 
 }  // namespace
