@@ -24,7 +24,6 @@ namespace {
 
 using lode::testing::BlockHarness;
 using lode::testing::member;
-using lode::testing::numbers_of;
 
 constexpr double kPi = std::numbers::pi;
 
@@ -58,8 +57,7 @@ TEST(FilterBiquad, DesignedFormsEqualTheCookbook) {
     ASSERT_TRUE(h.configure()) << h.diagnostics();
     const Json d = h.describe();
     const Json& x = member(d, "channels").elements().at(0);
-    const std::vector<double> b = numbers_of(member(x, "b"));
-    const std::vector<double> a = numbers_of(member(x, "a"));
+    const auto [b, a] = filter::testing::described_section(x);
     const std::array<double, 5> expected = cookbook(c.type, c.f, c.q, c.fs);
     const std::array<double, 5> got{b[0], b[1], b[2], a[1], a[2]};
     for (std::size_t i = 0; i < 5; ++i) {

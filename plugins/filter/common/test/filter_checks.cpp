@@ -6,6 +6,7 @@
 #include <numbers>
 
 #include "lode/testing/allocation_counter.hpp"
+#include "lode/testing/plugin_checks.hpp"
 
 namespace lode::plugins::filter::testing {
 
@@ -18,6 +19,11 @@ std::complex<double> component(const std::vector<double>& y, double f_hz, double
   }
   const double det = ss * cc - sc * sc;
   return {(ys * cc - yc * sc) / det, (yc * ss - ys * sc) / det};
+}
+
+lode::math::TransferFunction described_section(const Json& channel) {
+  return {lode::testing::numbers_of(lode::testing::member(channel, "b")),
+          lode::testing::numbers_of(lode::testing::member(channel, "a"))};
 }
 
 double measured_gain(lode::testing::BlockHarness& h, double f_hz, double rate_hz, int settle_cycles) {

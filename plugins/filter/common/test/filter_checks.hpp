@@ -7,6 +7,8 @@
 #include <functional>
 #include <vector>
 
+#include "lode/json.hpp"
+#include "lode/math/discretize.hpp"
 #include "lode/testing/harness.hpp"
 
 namespace lode::plugins::filter::testing {
@@ -14,6 +16,10 @@ namespace lode::plugins::filter::testing {
 /// The f_hz component of y[k] (sampled at rate_hz) by least squares on sin/cos over the
 /// samples, y ~ a sin + b cos, as a + jb: its magnitude is the amplitude.
 std::complex<double> component(const std::vector<double>& y, double f_hz, double rate_hz);
+
+/// A filtered channel's section as describe() reports it: b and a (a[0] = 1) of
+/// H(z) = (b0 + b1 z^-1 + b2 z^-2) / (1 + a1 z^-1 + a2 z^-2).
+lode::math::TransferFunction described_section(const Json& channel);
 
 /// Channel 0's steady-state gain at f_hz: activates the filter, runs a unit sine through it,
 /// skips `settle_cycles`, then fits the output's f_hz component over 4 s.

@@ -24,7 +24,6 @@ namespace {
 
 using lode::testing::BlockHarness;
 using lode::testing::member;
-using lode::testing::numbers_of;
 using filter::testing::component;
 
 constexpr double kPi = std::numbers::pi;
@@ -53,8 +52,7 @@ TEST(FilterNotch, Seed003ReferenceCoefficients) {
     ASSERT_TRUE(h.configure()) << h.diagnostics();
     const Json d = h.describe();
     const Json& x = member(d, "channels").elements().at(0);
-    const std::vector<double> b = numbers_of(member(x, "b"));
-    const std::vector<double> a = numbers_of(member(x, "a"));
+    const auto [b, a] = filter::testing::described_section(x);
     std::printf("fs %6.1f Hz: b = [%.6f, %.6f, %.6f], a = [1, %.6f, %.6f]\n", row.fs, b[0], b[1], b[2], a[1], a[2]);
     EXPECT_NEAR(b[0], row.b0, 6e-7);
     EXPECT_NEAR(b[1], row.b1, 6e-7);
@@ -96,9 +94,7 @@ TEST(FilterNotch, MeasuredResponseFollowsTheDesignAndTheAnalogEq31) {
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   const Json d = h.describe();
   const Json& x = member(d, "channels").elements().at(0);
-  const std::vector<double> b = numbers_of(member(x, "b"));
-  const std::vector<double> a = numbers_of(member(x, "a"));
-  const lode::math::TransferFunction digital{b, a};
+  const lode::math::TransferFunction digital = filter::testing::described_section(x);
   const double w0 = 2 * kPi * 50 * std::sqrt(0.1);
   const lode::math::TransferFunction analog{{0.1, 0.0, w0 * w0}, {1.0, w0, w0 * w0}};
   // The analog eq. 31 with zeta = 0.5, computed independently and rounded to 0.1 dB.
@@ -154,7 +150,7 @@ TEST(FilterNotch, RemovesA50HzLineFromASignal) {
   const double motion_gain = std::abs(component(x_out, 2, fs)) / std::abs(component(x_in, 2, fs));
   const Json d = h.describe();
   const Json& x = member(d, "channels").elements().at(0);
-  const lode::math::TransferFunction design{numbers_of(member(x, "b")), numbers_of(member(x, "a"))};
+  const lode::math::TransferFunction design = filter::testing::described_section(x);
   EXPECT_NEAR(motion_gain, std::abs(lode::math::discrete_response(design, 2 * kPi * 2, 1 / fs)), 1e-6)
       << "the 2 Hz motion passes with the design's gain (+0.05 dB: eq. 31 peaks slightly below w0)";
   EXPECT_NEAR(20 * std::log10(motion_gain), 0.0, 0.1);
@@ -329,8 +325,7 @@ TEST(FilterNotchTunables, RetuneTakesEffectAtTheNextStepFromTheSignalHistory) {
   EXPECT_EQ(h.block().tunable_value(1), 60.0);
   const Json described = h.describe();
   const Json& c = member(described, "channels").elements().at(0);
-  const std::vector<double> b = numbers_of(member(c, "b"));
-  const std::vector<double> a = numbers_of(member(c, "a"));
+  const auto [b, a] = filter::testing::described_section(c);
   EXPECT_NEAR(member(c, "gain_at_f_notch_db").as_number(), 20 * std::log10(0.01), 1e-9) << "redesigned at 60 Hz";
   // The next output is the new difference equation on the actual history (direct form I switch).
   in[0] = input(kSwitch);
