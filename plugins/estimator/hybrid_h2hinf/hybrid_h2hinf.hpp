@@ -51,7 +51,9 @@
 #include <string>
 #include <vector>
 
-#include "lode/block.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/estimator_state.hpp"
+#include "lode/sdk/tunables.hpp"
 
 namespace lode::plugins {
 
@@ -158,7 +160,7 @@ enum class InvalidMeasurement { fault, predict };
 
 }  // namespace hybrid
 
-class HybridH2HinfEstimator final : public Block {
+class HybridH2HinfEstimator final : public Block, public Tunables, public EstimatorState {
  public:
   Status configure(ConfigureContext& ctx) override;
   Status activate() override;

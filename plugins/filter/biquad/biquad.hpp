@@ -35,7 +35,8 @@
 #include <vector>
 
 #include "biquad_bank.hpp"
-#include "lode/block.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/tunables.hpp"
 
 namespace lode::plugins {
 
@@ -59,7 +60,7 @@ struct ChannelDesign {
 
 }  // namespace biquad
 
-class BiquadFilter final : public Block {
+class BiquadFilter final : public Block, public Tunables {
  public:
   Status configure(ConfigureContext& ctx) override;
   Status activate() override;

@@ -5,8 +5,8 @@
 #include <string>
 #include <utility>
 
-#include "lode/math/discretize.hpp"
-#include "lode/text.hpp"
+#include "lode/sdk/math/discretize.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins::filter {
 

@@ -25,8 +25,8 @@
 #include <string_view>
 #include <vector>
 
-#include "lode/block.hpp"
-#include "lode/math/biquad.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/math/biquad.hpp"
 
 namespace lode::plugins::filter {
 

@@ -44,7 +44,8 @@
 #include <vector>
 
 #include "biquad_bank.hpp"
-#include "lode/block.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/tunables.hpp"
 
 namespace lode::plugins {
 
@@ -70,7 +71,7 @@ struct ChannelDesign {
 
 }  // namespace notch
 
-class NotchFilter final : public Block {
+class NotchFilter final : public Block, public Tunables {
  public:
   Status configure(ConfigureContext& ctx) override;
   Status activate() override;

@@ -4,7 +4,7 @@
 #include <set>
 #include <utility>
 
-#include "lode/text.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins::source {
 

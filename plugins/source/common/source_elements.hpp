@@ -15,9 +15,9 @@
 #include <string_view>
 #include <vector>
 
-#include "lode/block.hpp"
-#include "lode/params.hpp"
-#include "lode/port.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/params.hpp"
+#include "lode/sdk/port.hpp"
 
 namespace lode::plugins::source {
 

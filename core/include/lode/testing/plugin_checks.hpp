@@ -13,8 +13,8 @@
 #include <string_view>
 #include <vector>
 
-#include "lode/json.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/json.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace lode::testing {
 

@@ -12,8 +12,8 @@
 #include <random>
 #include <string>
 
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace {
 

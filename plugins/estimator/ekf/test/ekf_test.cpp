@@ -15,10 +15,10 @@
 #include <string>
 #include <vector>
 
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/require.hpp"
-#include "lode/testing/harness.hpp"
-#include "lode/testing/state_export.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/require.hpp"
+#include "lode/sdk/testing/harness.hpp"
+#include "lode/sdk/testing/state_export.hpp"
 
 namespace {
 

@@ -15,10 +15,10 @@
 #include <random>
 #include <string>
 
-#include "lode/math/discretize.hpp"
-#include "lode/math/riccati.hpp"
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/math/discretize.hpp"
+#include "lode/sdk/math/riccati.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace lode::plugins {
 namespace {

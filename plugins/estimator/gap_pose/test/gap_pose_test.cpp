@@ -12,12 +12,12 @@
 #include <filesystem>
 #include <string>
 
-#include "lode/json.hpp"
+#include "lode/sdk/json.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/require.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/require.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace {
 

@@ -8,8 +8,8 @@
 #include <cmath>
 #include <string>
 
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace {
 

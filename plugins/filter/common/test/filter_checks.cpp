@@ -5,7 +5,7 @@
 #include <cmath>
 #include <numbers>
 
-#include "lode/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
 #include "lode/testing/plugin_checks.hpp"
 
 namespace lode::plugins::filter::testing {

@@ -7,9 +7,9 @@
 #include <functional>
 #include <vector>
 
-#include "lode/json.hpp"
-#include "lode/math/discretize.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/json.hpp"
+#include "lode/sdk/math/discretize.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace lode::plugins::filter::testing {
 

@@ -4,7 +4,7 @@
 
 #include <cmath>
 
-#include "lode/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
 
 namespace lode::plugins::source::testing {
 
@@ -36,7 +36,7 @@ void expect_refusals_change_nothing(const std::string& plugin, const std::string
 }
 
 void expect_set_tunable_allocates_nothing(BlockHarness& h, std::size_t index, double a, double b) {
-  Block& block = h.block();
+  Tunables& block = h.tunables();
   const char* why = "";
   int accepted = 0;
   const auto before = lode::testing::allocation_count();

@@ -9,8 +9,8 @@
 #include <utility>
 #include <vector>
 
-#include "lode/block.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace lode::plugins::source::testing {
 

@@ -7,7 +7,7 @@
 #include <limits>
 #include <string>
 
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/harness.hpp"
 #include "source_tunable_checks.hpp"
 
 namespace {
@@ -98,7 +98,7 @@ TEST(SourceRampTunables, OffsetAndRatePerElement) {
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   expect_tunables(h.block(),
                   {{"offset.x", "m"}, {"offset.theta_z", "rad"}, {"rate.x", "m/s"}, {"rate.theta_z", "rad/s"}});
-  EXPECT_DOUBLE_EQ(h.block().tunable_value(3), 2e-3);
+  EXPECT_DOUBLE_EQ(h.tunables().tunable_value(3), 2e-3);
 }
 
 TEST(SourceRampTunables, NewRateBendsTheRampWithoutAJump) {
@@ -108,7 +108,7 @@ TEST(SourceRampTunables, NewRateBendsTheRampWithoutAJump) {
   run_to(h, 99);
   EXPECT_NEAR(h.output("out")[0], 99e-6, 1e-18);
   const char* why = "";
-  ASSERT_TRUE(h.block().set_tunable(1, -2e-3, why)) << why;  // rate.x
+  ASSERT_TRUE(h.tunables().set_tunable(1, -2e-3, why)) << why;  // rate.x
   h.step();  // cycle 100: continues from 99 um with the new slope
   EXPECT_NEAR(h.output("out")[0], 99e-6 - 2e-6, 1e-18);
   run_to(h, 200);
@@ -117,7 +117,7 @@ TEST(SourceRampTunables, NewRateBendsTheRampWithoutAJump) {
   EXPECT_NEAR(h.output("out")[0], 99e-6 - 2e-3 * 0.201, 1e-18);
   EXPECT_NEAR(h.describe().find("final_value")->elements().at(0).as_number(), 99e-6 - 2e-3 * 0.201, 1e-18);
   // A new offset shifts the whole path from the next sample.
-  ASSERT_TRUE(h.block().set_tunable(0, 1e-3, why)) << why;
+  ASSERT_TRUE(h.tunables().set_tunable(0, 1e-3, why)) << why;
   h.step();
   EXPECT_NEAR(h.output("out")[0], 1e-3 + 99e-6 - 2e-3 * 0.201, 1e-18);
 }

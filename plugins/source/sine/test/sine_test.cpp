@@ -7,7 +7,7 @@
 #include <numbers>
 #include <string>
 
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/harness.hpp"
 #include "source_tunable_checks.hpp"
 
 namespace {
@@ -84,11 +84,11 @@ TEST(SourceSineTunables, OffsetAmplitudeAndFrequencyUpToNyquist) {
   BlockHarness h("source.sine", "names: [x]\nunits: [m]\namplitude: [1e-4]\nfrequency_hz: [10]\n", kRateHz);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   expect_tunables(h.block(), {{"offset.x", "m"}, {"amplitude.x", "m"}, {"frequency_hz.x", "Hz"}});
-  const auto t = h.block().tunables();
+  const auto t = h.tunables().tunables();
   ASSERT_EQ(t.size(), 3u);
   EXPECT_EQ(t[2].min, 0.0);
   EXPECT_EQ(t[2].max, 500.0);
-  EXPECT_DOUBLE_EQ(h.block().tunable_value(2), 10.0);
+  EXPECT_DOUBLE_EQ(h.tunables().tunable_value(2), 10.0);
 }
 
 TEST(SourceSineTunables, NewFrequencyKeepsThePhaseOfTheLastSample) {
@@ -100,14 +100,14 @@ TEST(SourceSineTunables, NewFrequencyKeepsThePhaseOfTheLastSample) {
   // 10 Hz for 0.123 s: 1.23 cycles.
   EXPECT_NEAR(h.output("out")[0], std::sin(2 * std::numbers::pi * 0.23), 1e-12);
   const char* why = "";
-  ASSERT_TRUE(h.block().set_tunable(2, 25.0, why)) << why;
+  ASSERT_TRUE(h.tunables().set_tunable(2, 25.0, why)) << why;
   h.step();  // one ms at 25 Hz from phase 0.23 cycles (not sin(2 pi 25 * 0.124): no phase jump)
   EXPECT_NEAR(h.output("out")[0], std::sin(2 * std::numbers::pi * (0.23 + 0.025)), 1e-12);
   while (h.tick().cycle < 200) h.step();
   EXPECT_NEAR(h.output("out")[0], std::sin(2 * std::numbers::pi * (0.23 + 25 * 0.077)), 1e-12);
   // Amplitude and offset: the next sample is the new offset + new amplitude * sin(phase).
-  ASSERT_TRUE(h.block().set_tunable(1, 3.0, why)) << why;
-  ASSERT_TRUE(h.block().set_tunable(0, -0.5, why)) << why;
+  ASSERT_TRUE(h.tunables().set_tunable(1, 3.0, why)) << why;
+  ASSERT_TRUE(h.tunables().set_tunable(0, -0.5, why)) << why;
   h.step();
   EXPECT_NEAR(h.output("out")[0], -0.5 + 3.0 * std::sin(2 * std::numbers::pi * (0.23 + 25 * 0.078)), 1e-12);
 }

@@ -6,7 +6,7 @@
 #include <cmath>
 #include <string>
 
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/harness.hpp"
 #include "source_tunable_checks.hpp"
 
 namespace {
@@ -141,12 +141,12 @@ TEST(SourceStepTunables, OffsetPerElementWithItsUnit) {
                                 "steps: [{time_s: 0.5, value: [2e-3, 1e-3]}]\n", 1000.0);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   expect_tunables(h.block(), {{"offset.x", "m"}, {"offset.theta_z", "rad"}});
-  const auto t = h.block().tunables();
+  const auto t = h.tunables().tunables();
   ASSERT_EQ(t.size(), 2u);
   EXPECT_FALSE(t[0].integer);
   EXPECT_LE(t[0].min, -1e300);
   EXPECT_GE(t[0].max, 1e300);
-  EXPECT_DOUBLE_EQ(h.block().tunable_value(0), 1e-3);
+  EXPECT_DOUBLE_EQ(h.tunables().tunable_value(0), 1e-3);
 }
 
 TEST(SourceStepTunables, NewOffsetAppliesFromTheNextSampleAndRefusalsChangeNothing) {
@@ -157,19 +157,19 @@ TEST(SourceStepTunables, NewOffsetAppliesFromTheNextSampleAndRefusalsChangeNothi
   for (int k = 0; k < 10; ++k) h.step();
   EXPECT_EQ(h.output("out")[0], 1e-3);
   const char* why = "";
-  ASSERT_TRUE(h.block().set_tunable(0, -4e-3, why)) << why;
+  ASSERT_TRUE(h.tunables().set_tunable(0, -4e-3, why)) << why;
   EXPECT_EQ(h.output("out")[0], 1e-3) << "nothing changes before the next step";
   h.step();
   EXPECT_EQ(h.output("out")[0], -4e-3);
   EXPECT_EQ(h.output("out")[1], 0.0);
-  EXPECT_FALSE(h.block().set_tunable(1, std::nan(""), why));
+  EXPECT_FALSE(h.tunables().set_tunable(1, std::nan(""), why));
   EXPECT_STRNE(why, "");
   why = "";
-  EXPECT_FALSE(h.block().set_tunable(2, 1.0, why));
+  EXPECT_FALSE(h.tunables().set_tunable(2, 1.0, why));
   EXPECT_STRNE(why, "");
   h.step();
   EXPECT_EQ(h.output("out")[1], 0.0);
-  EXPECT_EQ(h.block().tunable_value(1), 0.0);
+  EXPECT_EQ(h.tunables().tunable_value(1), 0.0);
   while (h.tick().cycle < 500) h.step();
   EXPECT_EQ(h.output("out")[0], 2e-3) << "the steps' absolute values are not offset";
 }

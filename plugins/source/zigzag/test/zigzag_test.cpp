@@ -7,7 +7,7 @@
 #include <cmath>
 #include <string>
 
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/harness.hpp"
 #include "source_tunable_checks.hpp"
 
 namespace {
@@ -135,7 +135,7 @@ TEST(SourceZigzagTunables, OffsetAndAmplitudePerElement) {
                                   "period_s: 1\n", 1000.0);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   expect_tunables(h.block(), {{"offset.x", "m"}, {"offset.y", "m"}, {"amplitude.x", "m"}, {"amplitude.y", "m"}});
-  EXPECT_DOUBLE_EQ(h.block().tunable_value(2), 1e-3);
+  EXPECT_DOUBLE_EQ(h.tunables().tunable_value(2), 1e-3);
 }
 
 TEST(SourceZigzagTunables, NewAmplitudeAndOffsetApplyFromTheNextSample) {
@@ -147,18 +147,18 @@ TEST(SourceZigzagTunables, NewAmplitudeAndOffsetApplyFromTheNextSample) {
   while (h.tick().cycle < 250) h.step();
   EXPECT_NEAR(h.output("out")[0], 0.5e-3, 1e-15);  // half way up the first sweep
   const char* why = "";
-  ASSERT_TRUE(h.block().set_tunable(2, 2e-3, why)) << why;
+  ASSERT_TRUE(h.tunables().set_tunable(2, 2e-3, why)) << why;
   h.step();
   EXPECT_NEAR(h.output("out")[0], 2e-3 * 0.502, 1e-15);
-  ASSERT_TRUE(h.block().set_tunable(1, 5e-3, why)) << why;  // offset.y
+  ASSERT_TRUE(h.tunables().set_tunable(1, 5e-3, why)) << why;  // offset.y
   h.step();
   EXPECT_NEAR(h.output("out")[1], 5e-3 + 1e-4 * 0.504, 1e-15);
-  EXPECT_FALSE(h.block().set_tunable(0, std::nan(""), why));
+  EXPECT_FALSE(h.tunables().set_tunable(0, std::nan(""), why));
   EXPECT_STRNE(why, "");
-  EXPECT_FALSE(h.block().set_tunable(4, 0.0, why));
+  EXPECT_FALSE(h.tunables().set_tunable(4, 0.0, why));
   h.step();
   EXPECT_NEAR(h.output("out")[0], 2e-3 * 0.506, 1e-15) << "refused values changed nothing";
-  EXPECT_DOUBLE_EQ(h.block().tunable_value(0), 0.0);
+  EXPECT_DOUBLE_EQ(h.tunables().tunable_value(0), 0.0);
 }
 
 TEST(SourceZigzagTunables, SetTunableAllocatesNothing) {
