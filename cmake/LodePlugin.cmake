@@ -5,8 +5,8 @@
 #   lode_<id>_obj   object library with the plugin's code (tests link it to reach internals)
 #   lode-<NAME>.so  the loadable module in ${LODE_BUILD_PLUGIN_DIR}, installed next to the
 #                   other plugins
-#   <id>_test       one GoogleTest executable from TESTS, registered with ctest; LIBS link to
-#                   the plugin and its test, TEST_LIBS (test helpers) to the test only
+#   <id>_test       one GoogleTest executable from TESTS, registered with ctest; it also links
+#                   TEST_LIBS (test helpers a family of plugins shares)
 function(lode_add_plugin)
   cmake_parse_arguments(P "" "NAME" "SOURCES;TESTS;LIBS;TEST_LIBS" ${ARGN})
   if(NOT P_NAME OR NOT P_SOURCES)
@@ -33,16 +33,29 @@ function(lode_add_plugin)
   endif()
 endfunction()
 
-# lode_add_plugin_library(NAME <name> SOURCES <files...> [LIBS <targets...>])
+# lode_add_family_library(NAME <target> SOURCES <files...> [LIBS <targets...>] [TESTING])
 #
-# Builds lode_<name>, the static (PIC) library of what a family's plugins share, from
-# plugins/<kind>/common; its folder is on the include path of every target that links it
-# (through lode_add_plugin's LIBS).
-function(lode_add_plugin_library)
-  cmake_parse_arguments(L "" "NAME" "SOURCES;LIBS" ${ARGN})
-  add_library(lode_${L_NAME} STATIC ${L_SOURCES})
-  set_target_properties(lode_${L_NAME} PROPERTIES POSITION_INDEPENDENT_CODE ON)
-  target_link_libraries(lode_${L_NAME} PUBLIC lodestone::core Eigen3::Eigen ${L_LIBS})
-  target_include_directories(lode_${L_NAME} PUBLIC ${CMAKE_CURRENT_SOURCE_DIR})
-  lode_set_warnings(lode_${L_NAME})
+# What one family of plugins shares, in plugins/<kind>/common/: a static library (position-
+# independent: it is linked into each plugin's module) whose sources' folder is on the include
+# path of whatever links it, e.g. lode_add_plugin(... LIBS <target>). With TESTING: helpers
+# that the family's tests share (built with the tests only, on lodestone::testing and
+# GoogleTest), linked with lode_add_plugin(... TEST_LIBS <target>).
+function(lode_add_family_library)
+  cmake_parse_arguments(L "TESTING" "NAME" "SOURCES;LIBS" ${ARGN})
+  if(NOT L_NAME OR NOT L_SOURCES)
+    message(FATAL_ERROR "lode_add_family_library: NAME and SOURCES are required")
+  endif()
+  if(L_TESTING AND NOT LODE_BUILD_TESTS)
+    return()
+  endif()
+  list(GET L_SOURCES 0 first_source)
+  get_filename_component(source_dir ${first_source} DIRECTORY)
+  add_library(${L_NAME} STATIC ${L_SOURCES})
+  set_target_properties(${L_NAME} PROPERTIES POSITION_INDEPENDENT_CODE ON)
+  target_link_libraries(${L_NAME} PUBLIC lodestone::core Eigen3::Eigen ${L_LIBS})
+  if(L_TESTING)
+    target_link_libraries(${L_NAME} PUBLIC lodestone::testing GTest::gtest)
+  endif()
+  target_include_directories(${L_NAME} PUBLIC ${CMAKE_CURRENT_SOURCE_DIR}/${source_dir})
+  lode_set_warnings(${L_NAME})
 endfunction()

@@ -5,7 +5,9 @@
 #include <complex>
 #include <cstdio>
 #include <numbers>
+#include <optional>
 #include <string>
+#include <utility>
 
 #include "lode/sdk/math/discretize.hpp"
 #include "lode/sdk/plugin.hpp"
@@ -47,17 +49,6 @@ namespace {
 
 using biquad::Coefficients;
 using biquad::Type;
-
-std::vector<double> per_channel(Params& params, std::string_view key, std::vector<double> values, std::size_t n) {
-  if (values.size() == 1 && n > 1) values.assign(n, values.front());
-  if (values.size() != n) {
-    params.fail(key, "expected one number or " + std::to_string(n) + " (one per filtered channel), got " +
-                         std::to_string(values.size()));
-    values.assign(n, 0.0);
-  }
-  return values;
-}
-
 using lode::math::biquad_response;
 
 Type type_from(const std::string& text) {
@@ -72,31 +63,8 @@ Type type_from(const std::string& text) {
 
 Status BiquadFilter::configure(ConfigureContext& ctx) {
   Params& params = ctx.params();
-  rate_hz_ = ctx.rate_hz();
-  const double nyquist_hz = 0.5 * rate_hz_;
-
-  ctx.declare_input(in_, "in", {}, true);
-  const Elements* source = ctx.input_source("in");
-  if (source == nullptr || source->empty()) {
-    params.fail("inputs", "the in input must be connected to a configured block's output: its elements name "
-                          "and size the channels");
-  } else {
-    elements_ = *source;
-  }
-  channels_ = elements_.size();
-
-  std::vector<std::string> selected = params.texts("channels", {});
-  std::vector<bool> filtered(channels_, !params.has("channels"));
-  for (const std::string& name : selected) {
-    const auto found =
-        std::find_if(elements_.begin(), elements_.end(), [&](const Element& e) { return e.name == name; });
-    if (found == elements_.end()) {
-      params.fail("channels", "'" + name + "' is not an element of the input");
-    } else {
-      filtered[static_cast<std::size_t>(found - elements_.begin())] = true;
-    }
-  }
-  const auto count = static_cast<std::size_t>(std::count(filtered.begin(), filtered.end(), true));
+  const double rate_hz = ctx.rate_hz();
+  const std::size_t count = bank_.configure_channels(ctx);
 
   const Type type = type_from(
       params.choice("type", {"lowpass", "highpass", "bandpass", "notch", "coefficients"}));
@@ -117,119 +85,41 @@ Status BiquadFilter::configure(ConfigureContext& ctx) {
   std::vector<double> designed_f(count, 0.0);
   std::vector<double> designed_q(count, 0.0);
   if (type == Type::coefficients) {
-    if (raw_values.size() == 5) {
-      for (std::size_t i = 1; i < count; ++i) raw_values.insert(raw_values.end(), raw_values.begin(), raw_values.begin() + 5);
-    }
-    if (raw_values.size() != 5 * count) {
-      params.fail("coefficients", "expected 5 numbers [b0, b1, b2, a1, a2] or 5 per filtered channel (" +
-                                      std::to_string(5 * count) + "), got " + std::to_string(raw_values.size()));
-      return Status::error("invalid parameters");
-    }
-    for (std::size_t i = 0; i < count; ++i) {
-      const double* c = &raw_values[5 * i];
-      coefficients[i] = {c[0], c[1], c[2], c[3], c[4]};
-      // Stable iff both roots of z^2 + a1 z + a2 lie inside the unit circle (Jury: |a2| < 1, |a1| < 1 + a2).
-      if (!(std::abs(c[4]) < 1.0 && std::abs(c[3]) < 1.0 + c[4])) {
-        params.fail("coefficients", "unstable denominator 1 + " + number_text(c[3]) + " z^-1 + " + number_text(c[4]) +
-                                        " z^-2 (a pole on or outside the unit circle)");
-      }
-    }
+    std::optional<std::vector<Coefficients>> raw = filter::raw_coefficients(params, raw_values, count);
+    if (!raw) return Status::error("invalid parameters");
+    coefficients = std::move(*raw);
   } else {
-    designed_f = per_channel(params, "f_hz", f_hz, count);
-    designed_q = per_channel(params, "q", q, count);
+    designed_f = filter::per_channel(params, "f_hz", f_hz, count);
+    designed_q = filter::per_channel(params, "q", q, count);
     for (std::size_t i = 0; i < count; ++i) {
-      if (!(designed_f[i] > 0.0 && designed_f[i] < nyquist_hz)) {
-        params.fail("f_hz", "must lie in (0, " + number_text(nyquist_hz) + ") Hz (below Nyquist at " +
-                                number_text(rate_hz_) + " Hz), got " + number_text(designed_f[i]));
-      }
+      filter::require_below_nyquist(params, "f_hz", designed_f[i], rate_hz);
       if (!(designed_q[i] > 0.0) || !std::isfinite(designed_q[i])) {
         params.fail("q", "the quality factor must be > 0, got " + number_text(designed_q[i]));
       }
     }
     if (!params.ok()) return Status::error("invalid parameters");
     for (std::size_t i = 0; i < count; ++i) {
-      coefficients[i] = biquad::design(type, designed_f[i], designed_q[i], rate_hz_);
+      coefficients[i] = biquad::design(type, designed_f[i], designed_q[i], rate_hz);
     }
   }
   if (!params.ok()) return Status::error("invalid parameters");
 
-  designs_.assign(channels_, {});
-  sections_.assign(channels_, {});
-  enabled_ = std::make_unique<std::atomic<bool>[]>(channels_);
-  filtered_value_.assign(channels_, 0.0);
-  for (std::size_t i = 0, used = 0; i < channels_; ++i) {
-    biquad::ChannelDesign& d = designs_[i];
-    d.filtered = filtered[i];
-    if (!filtered[i]) {
-      enabled_[i].store(false);
-      continue;
-    }
-    d.type = type;
-    d.f_hz = designed_f[used];
-    d.q = designed_q[used];
-    sections_[i].configure(coefficients[used]);
-    enabled_[i].store(initially_enabled);
-    ++used;
-  }
-  ctx.declare_output(out_, "out", elements_);
-  return params.ok() ? Status::ok() : Status::error("invalid parameters");
+  designs_.assign(count, {});
+  for (std::size_t i = 0; i < count; ++i) designs_[i] = {type, designed_f[i], designed_q[i]};
+  return bank_.install(ctx, coefficients, initially_enabled);
 }
 
-Status BiquadFilter::activate() {
-  if (in_.size() != channels_) {
-    return Status::error("filter.biquad: the input has " + std::to_string(in_.size()) + " elements, expected " +
-                         std::to_string(channels_));
-  }
-  for (std::size_t i = 0; i < channels_; ++i) {
-    sections_[i].reset();
-    out_[i] = 0.0;
-  }
-  return Status::ok();
-}
+Status BiquadFilter::activate() { return bank_.activate(); }
 
 StepStatus BiquadFilter::step(const Tick& /*tick*/) noexcept {
-  for (std::size_t i = 0; i < channels_; ++i) {
-    if (!std::isfinite(in_[i])) return fault("non-finite input");
-  }
-  for (std::size_t i = 0; i < channels_; ++i) {
-    const double x = in_[i];
-    double y = x;
-    if (designs_[i].filtered) {
-      // The section runs while bypassed too, so re-enabling starts from a settled state.
-      if (!sections_[i].step(x, filtered_value_[i])) return fault("non-finite biquad state");
-      if (enabled_[i].load(std::memory_order_relaxed)) y = filtered_value_[i];
-    }
-    out_[i] = y;
-  }
-  return StepStatus::ok;
+  const char* why = bank_.step();
+  return why == nullptr ? StepStatus::ok : fault(why);
 }
 
-void BiquadFilter::set_enabled(bool enabled) noexcept {
-  for (std::size_t i = 0; i < channels_; ++i) {
-    if (designs_[i].filtered) enabled_[i].store(enabled, std::memory_order_relaxed);
-  }
-}
-
-bool BiquadFilter::set_enabled(std::size_t channel, bool enabled) noexcept {
-  if (channel >= channels_ || !designs_[channel].filtered) return false;
-  enabled_[channel].store(enabled, std::memory_order_relaxed);
-  return true;
-}
-
-bool BiquadFilter::enabled(std::size_t channel) const noexcept {
-  return channel < channels_ && enabled_[channel].load(std::memory_order_relaxed);
-}
-
-std::vector<Tunable> BiquadFilter::tunables() const {
-  return {{"enabled", "bool", 0.0, 1.0, true, "1: filter, 0: bypass (out = in) every filtered channel"}};
-}
+std::vector<Tunable> BiquadFilter::tunables() const { return {filter::BiquadBank::enabled_tunable()}; }
 
 double BiquadFilter::tunable_value(std::size_t index) const noexcept {
-  if (index != 0) return 0.0;
-  for (std::size_t i = 0; i < channels_; ++i) {
-    if (designs_[i].filtered) return enabled(i) ? 1.0 : 0.0;
-  }
-  return 0.0;
+  return index == 0 ? bank_.enabled_value() : 0.0;
 }
 
 bool BiquadFilter::set_tunable(std::size_t index, double value, const char*& why) noexcept {
@@ -237,49 +127,28 @@ bool BiquadFilter::set_tunable(std::size_t index, double value, const char*& why
     why = "no such parameter";
     return false;
   }
-  if (!(value == 0.0 || value == 1.0)) {
-    why = "enabled must be 0 or 1";
-    return false;
-  }
-  // The sections keep running while bypassed, so switching either way has no stale state.
-  set_enabled(value == 1.0);
-  return true;
+  return bank_.set_enabled_tunable(value, why);
 }
 
 void BiquadFilter::describe(Json& out) const {
-  out["rate_hz"] = rate_hz_;
-  out["structure"] = "transposed direct form II per channel; bypassed channels keep filtering in the background";
-  Json channels = Json::array();
-  for (std::size_t i = 0; i < channels_; ++i) {
-    const biquad::ChannelDesign& d = designs_[i];
-    Json c = Json::object();
-    c["name"] = elements_[i].name;
-    c["filtered"] = d.filtered;
-    if (!d.filtered) {
-      channels.push(std::move(c));
-      continue;
-    }
-    c["enabled"] = enabled(i);
-    c["type"] = biquad::to_string(d.type);
-    if (d.type != Type::coefficients) {
-      c["f_hz"] = d.f_hz;
-      c["q"] = d.q;
-      c["discretization"] = "Tustin prewarped at f_hz (the RBJ cookbook closed form)";
-    }
-    const Coefficients& k = sections_[i].coefficients();
-    c["b"] = std::vector<double>{k.b0, k.b1, k.b2};
-    c["a"] = std::vector<double>{1.0, k.a1, k.a2};
-    c["dc_gain"] = std::abs(biquad_response(k, 0.0, rate_hz_));
-    c["nyquist_gain"] = std::abs(biquad_response(k, 0.5 * rate_hz_, rate_hz_));
-    if (d.type != Type::coefficients) {
-      // Floored at -400 dB so a notch's exact null stays a number in the JSON.
-      c["gain_at_f_db"] = std::max(20.0 * std::log10(std::abs(biquad_response(k, d.f_hz, rate_hz_))), -400.0);
-    }
-    const auto poles = lode::math::poly_roots({1.0, k.a1, k.a2});
-    if (!poles.empty()) c["pole_radius"] = std::max(std::abs(poles.front()), std::abs(poles.back()));
-    channels.push(std::move(c));
-  }
-  out["channels"] = std::move(channels);
+  const double rate_hz = bank_.rate_hz();
+  bank_.describe(
+      out,
+      [&](std::size_t slot, Json& c) {
+        const biquad::ChannelDesign& d = designs_[slot];
+        c["type"] = biquad::to_string(d.type);
+        if (d.type != Type::coefficients) {
+          c["f_hz"] = d.f_hz;
+          c["q"] = d.q;
+          c["discretization"] = "Tustin prewarped at f_hz (the RBJ cookbook closed form)";
+        }
+      },
+      [&](std::size_t slot, const Coefficients& k, Json& c) {
+        const biquad::ChannelDesign& d = designs_[slot];
+        if (d.type != Type::coefficients) c["gain_at_f_db"] = filter::decibels(biquad_response(k, d.f_hz, rate_hz));
+        const auto poles = lode::math::poly_roots({1.0, k.a1, k.a2});
+        if (!poles.empty()) c["pole_radius"] = std::max(std::abs(poles.front()), std::abs(poles.back()));
+      });
 }
 
 namespace {

@@ -20,10 +20,10 @@
 // the cookbook's closed form: with w = w0 T and alpha = sin(w)/(2Q), e.g. the low-pass
 //   b = [(1 - cos w)/2, 1 - cos w, (1 - cos w)/2] / (1 + alpha),
 //   a = [1, -2 cos w / (1 + alpha), (1 - alpha)/(1 + alpha)].
-// Or raw coefficients [b0, b1, b2, a1, a2] (a0 = 1). Each channel runs the transposed direct
-// form II  y = b0 x + s1,  s1 <- b1 x - a1 y + s2,  s2 <- b2 x - a2 y.
-// Channels not listed in `channels` pass through; set_enabled(false) bypasses (out = in) at run
-// time while the sections keep running, so re-enabling has no stale-state transient.
+// Or raw coefficients [b0, b1, b2, a1, a2] (a0 = 1). The sections run in the family's
+// filter::BiquadBank (transposed direct form II per channel; channels not listed in `channels`
+// pass through; set_enabled(false) bypasses, out = in, at run time while the sections keep
+// running, so re-enabling has no stale-state transient).
 //
 // Runtime parameter (`lode set`): enabled (every filtered channel), as set_enabled().
 //
@@ -31,16 +31,12 @@
 // set_enabled() from any thread (atomic flags); set_tunable() on the RT thread.
 #pragma once
 
-#include <atomic>
-#include <cmath>
 #include <cstddef>
-#include <memory>
-#include <string>
 #include <vector>
 
+#include "biquad_bank.hpp"
 #include "lode/sdk/block.hpp"
 #include "lode/sdk/tunables.hpp"
-#include "lode/sdk/math/biquad.hpp"
 
 namespace lode::plugins {
 
@@ -50,16 +46,13 @@ enum class Type { lowpass, highpass, bandpass, notch, coefficients };
 const char* to_string(Type type);
 
 /// H(z) = (b0 + b1 z^-1 + b2 z^-2) / (1 + a1 z^-1 + a2 z^-2).
-using Coefficients = lode::math::BiquadCoefficients;
+using Coefficients = filter::Coefficients;
 
 /// Prewarped-Tustin design of a cookbook form at rate_hz (configure time).
 Coefficients design(Type type, double f_hz, double q, double rate_hz);
 
-/// One channel's transposed direct form II section (shared with the other filter plugins).
-using Section = lode::math::BiquadSection;
-
+/// Per filtered channel: what its section was designed from (for describe()).
 struct ChannelDesign {
-  bool filtered = false;
   Type type = Type::lowpass;
   double f_hz = 0.0;
   double q = 0.0;
@@ -74,11 +67,11 @@ class BiquadFilter final : public Block, public Tunables {
   StepStatus step(const Tick& tick) noexcept override;
   void describe(Json& out) const override;
 
-  /// Enable (filter) or bypass (out = in) every filtered channel. Any thread, RT-safe.
-  void set_enabled(bool enabled) noexcept;
-  /// The same for one channel (index into the input); false if it is not a filtered channel.
-  bool set_enabled(std::size_t channel, bool enabled) noexcept;
-  [[nodiscard]] bool enabled(std::size_t channel) const noexcept;
+  /// Enable (filter) or bypass (out = in) every filtered channel, or one channel (false if it
+  /// is not filtered): filter::BiquadBank::set_enabled. Any thread, RT-safe.
+  void set_enabled(bool enabled) noexcept { bank_.set_enabled(enabled); }
+  bool set_enabled(std::size_t channel, bool enabled) noexcept { return bank_.set_enabled(channel, enabled); }
+  [[nodiscard]] bool enabled(std::size_t channel) const noexcept { return bank_.enabled(channel); }
 
   /// `lode set`: enabled (bool, index 0).
   [[nodiscard]] std::vector<Tunable> tunables() const override;
@@ -86,16 +79,8 @@ class BiquadFilter final : public Block, public Tunables {
   bool set_tunable(std::size_t index, double value, const char*& why) noexcept override;
 
  private:
-  double rate_hz_ = 0.0;
-  std::size_t channels_ = 0;
-  Elements elements_;
-  std::vector<biquad::ChannelDesign> designs_;
-  std::vector<biquad::Section> sections_;           ///< one per channel, sized in configure()
-  std::unique_ptr<std::atomic<bool>[]> enabled_;   ///< one per channel
-  std::vector<double> filtered_value_;               ///< this cycle's section outputs
-
-  InputPort in_;
-  OutputPort out_;
+  filter::BiquadBank bank_{"filter.biquad", "non-finite biquad state"};
+  std::vector<biquad::ChannelDesign> designs_;  ///< one per filtered channel, in input order
 };
 
 }  // namespace lode::plugins

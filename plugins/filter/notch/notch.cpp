@@ -5,7 +5,9 @@
 #include <complex>
 #include <cstdio>
 #include <numbers>
+#include <optional>
 #include <string>
+#include <utility>
 
 #include "lode/sdk/math/discretize.hpp"
 #include "lode/sdk/plugin.hpp"
@@ -48,57 +50,14 @@ Coefficients design(Form form, double f_notch_hz, double k, double zeta, double 
 
 }  // namespace notch
 
-namespace {
-
 using notch::Coefficients;
 using notch::Form;
-
-/// One number for every filtered channel, or one per filtered channel.
-std::vector<double> per_channel(Params& params, std::string_view key, std::vector<double> values, std::size_t n) {
-  if (values.size() == 1 && n > 1) values.assign(n, values.front());
-  if (values.size() != n) {
-    params.fail(key, "expected one number or " + std::to_string(n) + " (one per filtered channel), got " +
-                         std::to_string(values.size()));
-    values.assign(n, 0.0);
-  }
-  return values;
-}
-
 using lode::math::biquad_response;
-
-/// 20 log10 |h|, floored at -400 dB so an exact null stays a number in describe()'s JSON.
-double decibels(std::complex<double> h) { return std::max(20.0 * std::log10(std::abs(h)), -400.0); }
-
-}  // namespace
 
 Status NotchFilter::configure(ConfigureContext& ctx) {
   Params& params = ctx.params();
-  rate_hz_ = ctx.rate_hz();
-  const double nyquist_hz = 0.5 * rate_hz_;
-
-  ctx.declare_input(in_, "in", {}, true);
-  const Elements* source = ctx.input_source("in");
-  if (source == nullptr || source->empty()) {
-    params.fail("inputs", "the in input must be connected to a configured block's output: its elements name "
-                          "and size the channels");
-  } else {
-    elements_ = *source;
-  }
-  channels_ = elements_.size();
-
-  // Which channels are filtered (default all).
-  std::vector<std::string> selected = params.texts("channels", {});
-  std::vector<bool> filtered(channels_, !params.has("channels"));
-  for (const std::string& name : selected) {
-    const auto found =
-        std::find_if(elements_.begin(), elements_.end(), [&](const Element& e) { return e.name == name; });
-    if (found == elements_.end()) {
-      params.fail("channels", "'" + name + "' is not an element of the input");
-    } else {
-      filtered[static_cast<std::size_t>(found - elements_.begin())] = true;
-    }
-  }
-  const auto count = static_cast<std::size_t>(std::count(filtered.begin(), filtered.end(), true));
+  const double rate_hz = ctx.rate_hz();
+  const std::size_t count = bank_.configure_channels(ctx);
 
   const bool raw = params.has("coefficients");
   const bool designed = params.has("f_notch_hz") || params.has("k") || params.has("zeta") || params.has("form");
@@ -117,39 +76,18 @@ Status NotchFilter::configure(ConfigureContext& ctx) {
   }
   if (!params.ok()) return Status::error("invalid parameters");
 
+  const Form form = raw ? Form::coefficients : (form_text == "depth" ? Form::depth : Form::eq31);
   std::vector<Coefficients> coefficients(count);
-  designs_.assign(channels_, {});
   if (raw) {
-    if (raw_values.size() == 5) {
-      for (std::size_t i = 1; i < count; ++i) raw_values.insert(raw_values.end(), raw_values.begin(), raw_values.begin() + 5);
-    }
-    if (raw_values.size() != 5 * count) {
-      params.fail("coefficients", "expected 5 numbers [b0, b1, b2, a1, a2] or 5 per filtered channel (" +
-                                      std::to_string(5 * count) + "), got " + std::to_string(raw_values.size()));
-      return Status::error("invalid parameters");
-    }
-    for (std::size_t i = 0; i < count; ++i) {
-      const double* c = &raw_values[5 * i];
-      coefficients[i] = {c[0], c[1], c[2], c[3], c[4]};
-      // Stable iff both roots of z^2 + a1 z + a2 lie inside the unit circle (Jury: |a2| < 1, |a1| < 1 + a2).
-      if (!(std::abs(c[4]) < 1.0 && std::abs(c[3]) < 1.0 + c[4])) {
-        params.fail("coefficients", "unstable denominator 1 + " + number_text(c[3]) + " z^-1 + " + number_text(c[4]) +
-                                        " z^-2 (a pole on or outside the unit circle)");
-      }
-      for (int j = 0; j < 5; ++j) {
-        if (!std::isfinite(c[j])) params.fail("coefficients", "coefficients must be finite");
-      }
-    }
+    std::optional<std::vector<Coefficients>> given = filter::raw_coefficients(params, raw_values, count);
+    if (!given) return Status::error("invalid parameters");
+    coefficients = std::move(*given);
   } else {
-    f_notch = per_channel(params, "f_notch_hz", f_notch, count);
-    k = per_channel(params, "k", k, count);
-    zeta = per_channel(params, "zeta", zeta, count);
-    const Form form = form_text == "depth" ? Form::depth : Form::eq31;
+    f_notch = filter::per_channel(params, "f_notch_hz", f_notch, count);
+    k = filter::per_channel(params, "k", k, count);
+    zeta = filter::per_channel(params, "zeta", zeta, count);
     for (std::size_t i = 0; i < count; ++i) {
-      if (!(f_notch[i] > 0.0 && f_notch[i] < nyquist_hz)) {
-        params.fail("f_notch_hz", "must lie in (0, " + number_text(nyquist_hz) + ") Hz (below Nyquist at " +
-                                      number_text(rate_hz_) + " Hz), got " + number_text(f_notch[i]));
-      }
+      filter::require_below_nyquist(params, "f_notch_hz", f_notch[i], rate_hz);
       if (!(k[i] > 0.0) || !std::isfinite(k[i])) {
         params.fail("k", (form == Form::eq31 ? std::string("the high-frequency gain") : std::string("the depth")) +
                              " k must be > 0, got " + number_text(k[i]));
@@ -157,92 +95,28 @@ Status NotchFilter::configure(ConfigureContext& ctx) {
       if (!(zeta[i] > 0.0) || !std::isfinite(zeta[i])) params.fail("zeta", "must be > 0, got " + number_text(zeta[i]));
     }
     if (!params.ok()) return Status::error("invalid parameters");
-    for (std::size_t i = 0; i < count; ++i) coefficients[i] = notch::design(form, f_notch[i], k[i], zeta[i], rate_hz_);
+    for (std::size_t i = 0; i < count; ++i) coefficients[i] = notch::design(form, f_notch[i], k[i], zeta[i], rate_hz);
   }
   if (!params.ok()) return Status::error("invalid parameters");
   designed_ = !raw;
 
-  sections_.assign(channels_, {});
-  enabled_ = std::make_unique<std::atomic<bool>[]>(channels_);
-  filtered_value_.assign(channels_, 0.0);
-  for (std::size_t i = 0, used = 0; i < channels_; ++i) {
-    notch::ChannelDesign& d = designs_[i];
-    d.filtered = filtered[i];
-    if (!filtered[i]) {
-      enabled_[i].store(false);
-      continue;
-    }
-    d.form = raw ? Form::coefficients : (form_text == "depth" ? Form::depth : Form::eq31);
-    if (!raw) {
-      d.f_notch_hz = f_notch[used];
-      d.k = k[used];
-      d.zeta = zeta[used];
-    }
-    sections_[i].configure(coefficients[used]);
-    enabled_[i].store(initially_enabled);
-    ++used;
-  }
-  ctx.declare_output(out_, "out", elements_);
-  return params.ok() ? Status::ok() : Status::error("invalid parameters");
+  designs_.assign(count, {form, 0.0, 0.0, 0.0});
+  for (std::size_t i = 0; i < count && designed_; ++i) designs_[i] = {form, f_notch[i], k[i], zeta[i]};
+  return bank_.install(ctx, coefficients, initially_enabled);
 }
 
-Status NotchFilter::activate() {
-  if (in_.size() != channels_) {
-    return Status::error("filter.notch: the input has " + std::to_string(in_.size()) + " elements, expected " +
-                         std::to_string(channels_));
-  }
-  for (std::size_t i = 0; i < channels_; ++i) {
-    sections_[i].reset();
-    out_[i] = 0.0;
-  }
-  return Status::ok();
-}
+Status NotchFilter::activate() { return bank_.activate(); }
 
 StepStatus NotchFilter::step(const Tick& /*tick*/) noexcept {
-  for (std::size_t i = 0; i < channels_; ++i) {
-    if (!std::isfinite(in_[i])) return fault("non-finite input");
-  }
-  for (std::size_t i = 0; i < channels_; ++i) {
-    const double x = in_[i];
-    double y = x;
-    if (designs_[i].filtered) {
-      // The section runs while bypassed too, so re-enabling starts from a settled state.
-      if (!sections_[i].step(x, filtered_value_[i])) return fault("non-finite notch state");
-      if (enabled_[i].load(std::memory_order_relaxed)) y = filtered_value_[i];
-    }
-    out_[i] = y;
-  }
-  return StepStatus::ok;
-}
-
-void NotchFilter::set_enabled(bool enabled) noexcept {
-  for (std::size_t i = 0; i < channels_; ++i) {
-    if (designs_[i].filtered) enabled_[i].store(enabled, std::memory_order_relaxed);
-  }
-}
-
-bool NotchFilter::set_enabled(std::size_t channel, bool enabled) noexcept {
-  if (channel >= channels_ || !designs_[channel].filtered) return false;
-  enabled_[channel].store(enabled, std::memory_order_relaxed);
-  return true;
-}
-
-bool NotchFilter::enabled(std::size_t channel) const noexcept {
-  return channel < channels_ && enabled_[channel].load(std::memory_order_relaxed);
-}
-
-std::size_t NotchFilter::first_filtered() const noexcept {
-  for (std::size_t i = 0; i < channels_; ++i) {
-    if (designs_[i].filtered) return i;
-  }
-  return channels_;
+  const char* why = bank_.step();
+  return why == nullptr ? StepStatus::ok : fault(why);
 }
 
 std::vector<Tunable> NotchFilter::tunables() const {
   std::vector<Tunable> out;
-  out.push_back({"enabled", "bool", 0.0, 1.0, true, "1: filter, 0: bypass (out = in) every filtered channel"});
+  out.push_back(filter::BiquadBank::enabled_tunable());
   if (!designed_) return out;  // raw coefficients: nothing to redesign from
-  const double nyquist_hz = 0.5 * rate_hz_;
+  const double nyquist_hz = 0.5 * bank_.rate_hz();
   out.push_back({"f_notch_hz", "Hz", 0.0, nyquist_hz,
                  false, "notch frequency of every filtered channel, 0 < f < rate/2 (Nyquist refused)"});
   out.push_back({"k", "1", 0.0, 1e300, false,
@@ -252,26 +126,19 @@ std::vector<Tunable> NotchFilter::tunables() const {
 }
 
 double NotchFilter::tunable_value(std::size_t index) const noexcept {
-  const std::size_t first = first_filtered();
-  if (first == channels_) return 0.0;
+  // The first filtered channel's design stands for all of them.
+  if (designs_.empty()) return 0.0;
   switch (index) {
-    case kEnabled: return enabled(first) ? 1.0 : 0.0;
-    case kFrequency: return designs_[first].f_notch_hz;
-    case kDepth: return designs_[first].k;
-    case kDamping: return designs_[first].zeta;
+    case kEnabled: return bank_.enabled_value();
+    case kFrequency: return designs_.front().f_notch_hz;
+    case kDepth: return designs_.front().k;
+    case kDamping: return designs_.front().zeta;
     default: return 0.0;
   }
 }
 
 bool NotchFilter::set_tunable(std::size_t index, double value, const char*& why) noexcept {
-  if (index == kEnabled) {
-    if (!(value == 0.0 || value == 1.0)) {
-      why = "enabled must be 0 or 1";
-      return false;
-    }
-    set_enabled(value == 1.0);
-    return true;
-  }
+  if (index == kEnabled) return bank_.set_enabled_tunable(value, why);
   if (!designed_ || index > kDamping) {
     why = designed_ ? "no such parameter" : "raw coefficients: only enabled is tunable";
     return false;
@@ -280,7 +147,8 @@ bool NotchFilter::set_tunable(std::size_t index, double value, const char*& why)
     why = "the value must be finite";
     return false;
   }
-  if (index == kFrequency && !(value > 0.0 && value < 0.5 * rate_hz_)) {
+  const double rate_hz = bank_.rate_hz();
+  if (index == kFrequency && !(value > 0.0 && value < 0.5 * rate_hz)) {
     why = "f_notch_hz must lie strictly between 0 and the Nyquist frequency rate/2";
     return false;
   }
@@ -294,21 +162,20 @@ bool NotchFilter::set_tunable(std::size_t index, double value, const char*& why)
   }
   // Design every channel first, apply only if all are finite and stable: all or nothing.
   for (std::size_t pass = 0; pass < 2; ++pass) {
-    for (std::size_t i = 0; i < channels_; ++i) {
-      notch::ChannelDesign d = designs_[i];
-      if (!d.filtered) continue;
+    for (std::size_t slot = 0; slot < designs_.size(); ++slot) {
+      notch::ChannelDesign d = designs_[slot];
       (index == kFrequency ? d.f_notch_hz : index == kDepth ? d.k : d.zeta) = value;
-      const Coefficients c = notch::design(d.form, d.f_notch_hz, d.k, d.zeta, rate_hz_);
+      const Coefficients c = notch::design(d.form, d.f_notch_hz, d.k, d.zeta, rate_hz);
       if (pass == 0) {
         const bool finite = std::isfinite(c.b0) && std::isfinite(c.b1) && std::isfinite(c.b2) &&
                             std::isfinite(c.a1) && std::isfinite(c.a2);
-        if (!finite || !(std::abs(c.a2) < 1.0 && std::abs(c.a1) < 1.0 + c.a2)) {
+        if (!finite || !filter::stable(c)) {
           why = "the redesigned notch is not finite and stable at this value";
           return false;
         }
       } else {
-        designs_[i] = d;
-        sections_[i].retune(c);
+        designs_[slot] = d;
+        bank_.retune(slot, c);
       }
     }
   }
@@ -316,49 +183,39 @@ bool NotchFilter::set_tunable(std::size_t index, double value, const char*& why)
 }
 
 void NotchFilter::describe(Json& out) const {
-  out["rate_hz"] = rate_hz_;
-  out["structure"] = "transposed direct form II per channel; bypassed channels keep filtering in the background";
-  Json channels = Json::array();
-  for (std::size_t i = 0; i < channels_; ++i) {
-    const notch::ChannelDesign& d = designs_[i];
-    Json c = Json::object();
-    c["name"] = elements_[i].name;
-    c["filtered"] = d.filtered;
-    if (!d.filtered) {
-      channels.push(std::move(c));
-      continue;
-    }
-    c["enabled"] = enabled(i);
-    c["form"] = notch::to_string(d.form);
-    if (d.form != notch::Form::coefficients) {
-      c["f_notch_hz"] = d.f_notch_hz;
-      c["k"] = d.k;
-      c["zeta"] = d.zeta;
-      if (d.form == notch::Form::eq31) c["w0_rad_s"] = 2.0 * std::numbers::pi * d.f_notch_hz * std::sqrt(d.k);
-      c["discretization"] = "Tustin prewarped at f_notch";
-    }
-    const Coefficients& k = sections_[i].coefficients();
-    c["b"] = std::vector<double>{k.b0, k.b1, k.b2};
-    c["a"] = std::vector<double>{1.0, k.a1, k.a2};
-    c["dc_gain"] = std::abs(biquad_response(k, 0.0, rate_hz_));
-    c["nyquist_gain"] = std::abs(biquad_response(k, 0.5 * rate_hz_, rate_hz_));
-    if (d.form != notch::Form::coefficients) c["gain_at_f_notch_db"] = decibels(biquad_response(k, d.f_notch_hz, rate_hz_));
-    const auto zeros = lode::math::poly_roots({k.b0, k.b1, k.b2});
-    const auto poles = lode::math::poly_roots({1.0, k.a1, k.a2});
-    if (!zeros.empty()) {
-      // The null lies where the zeros' angle is, if they sit on the unit circle.
-      const double angle = std::abs(std::arg(zeros.front()));
-      c["zero_radius"] = std::abs(zeros.front());
-      c["zero_angle_rad"] = angle;
-      c["zero_frequency_hz"] = angle * rate_hz_ / (2.0 * std::numbers::pi);
-    }
-    if (!poles.empty()) {
-      c["pole_radius"] = std::max(std::abs(poles.front()), std::abs(poles.back()));
-      c["pole_angle_rad"] = std::abs(std::arg(poles.front()));
-    }
-    channels.push(std::move(c));
-  }
-  out["channels"] = std::move(channels);
+  const double rate_hz = bank_.rate_hz();
+  bank_.describe(
+      out,
+      [&](std::size_t slot, Json& c) {
+        const notch::ChannelDesign& d = designs_[slot];
+        c["form"] = notch::to_string(d.form);
+        if (d.form != Form::coefficients) {
+          c["f_notch_hz"] = d.f_notch_hz;
+          c["k"] = d.k;
+          c["zeta"] = d.zeta;
+          if (d.form == Form::eq31) c["w0_rad_s"] = 2.0 * std::numbers::pi * d.f_notch_hz * std::sqrt(d.k);
+          c["discretization"] = "Tustin prewarped at f_notch";
+        }
+      },
+      [&](std::size_t slot, const Coefficients& k, Json& c) {
+        const notch::ChannelDesign& d = designs_[slot];
+        if (d.form != Form::coefficients) {
+          c["gain_at_f_notch_db"] = filter::decibels(biquad_response(k, d.f_notch_hz, rate_hz));
+        }
+        const auto zeros = lode::math::poly_roots({k.b0, k.b1, k.b2});
+        const auto poles = lode::math::poly_roots({1.0, k.a1, k.a2});
+        if (!zeros.empty()) {
+          // The null lies where the zeros' angle is, if they sit on the unit circle.
+          const double angle = std::abs(std::arg(zeros.front()));
+          c["zero_radius"] = std::abs(zeros.front());
+          c["zero_angle_rad"] = angle;
+          c["zero_frequency_hz"] = angle * rate_hz / (2.0 * std::numbers::pi);
+        }
+        if (!poles.empty()) {
+          c["pole_radius"] = std::max(std::abs(poles.front()), std::abs(poles.back()));
+          c["pole_angle_rad"] = std::abs(std::arg(poles.front()));
+        }
+      });
 }
 
 namespace {

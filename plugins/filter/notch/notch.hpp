@@ -23,7 +23,7 @@
 // b1 = 2 w0^2 - 2 k Kp^2, a0 = Kp^2 + 2 zeta w0 Kp + w0^2, a1 = 2 w0^2 - 2 Kp^2,
 // a2 = Kp^2 - 2 zeta w0 Kp + w0^2, all divided by a0; DC gain exactly 1.
 // Or raw coefficients [b0, b1, b2, a1, a2] (a0 = 1), e.g. the printed eq. 34.
-// Each channel runs the transposed direct form II
+// The sections run in the family's filter::BiquadBank, each channel in transposed direct form II
 //   y = b0 x + s1,  s1 <- b1 x - a1 y + s2,  s2 <- b2 x - a2 y.
 // Channels not listed in `channels` pass through. set_enabled(false) bypasses the filter
 // (out = in) at run time; the sections keep filtering in the background so that re-enabling
@@ -40,16 +40,12 @@
 // boundary.
 #pragma once
 
-#include <atomic>
-#include <cmath>
 #include <cstddef>
-#include <memory>
-#include <string>
 #include <vector>
 
+#include "biquad_bank.hpp"
 #include "lode/sdk/block.hpp"
 #include "lode/sdk/tunables.hpp"
-#include "lode/sdk/math/biquad.hpp"
 
 namespace lode::plugins {
 
@@ -59,18 +55,14 @@ enum class Form { eq31, depth, coefficients };
 const char* to_string(Form form);
 
 /// H(z) = (b0 + b1 z^-1 + b2 z^-2) / (1 + a1 z^-1 + a2 z^-2).
-using Coefficients = lode::math::BiquadCoefficients;
+using Coefficients = filter::Coefficients;
 
 /// Prewarped-Tustin design of the eq31 or depth form at rate_hz. Closed form, no allocation:
 /// used by configure() and by set_tunable() on the RT thread.
 Coefficients design(Form form, double f_notch_hz, double k, double zeta, double rate_hz) noexcept;
 
-/// One channel's second-order section (with retune(): lode::math::BiquadSection).
-using Section = lode::math::BiquadSection;
-
-/// Per channel: what it was designed from (for describe()).
+/// Per filtered channel: what its section was designed from (describe(), set_tunable()).
 struct ChannelDesign {
-  bool filtered = false;
   Form form = Form::eq31;
   double f_notch_hz = 0.0;
   double k = 0.0;
@@ -86,11 +78,11 @@ class NotchFilter final : public Block, public Tunables {
   StepStatus step(const Tick& tick) noexcept override;
   void describe(Json& out) const override;
 
-  /// Enable (filter) or bypass (out = in) every filtered channel. Any thread, RT-safe.
-  void set_enabled(bool enabled) noexcept;
-  /// The same for one channel (index into the input); false if it is not a filtered channel.
-  bool set_enabled(std::size_t channel, bool enabled) noexcept;
-  [[nodiscard]] bool enabled(std::size_t channel) const noexcept;
+  /// Enable (filter) or bypass (out = in) every filtered channel, or one channel (false if it
+  /// is not filtered): filter::BiquadBank::set_enabled. Any thread, RT-safe.
+  void set_enabled(bool enabled) noexcept { bank_.set_enabled(enabled); }
+  bool set_enabled(std::size_t channel, bool enabled) noexcept { return bank_.set_enabled(channel, enabled); }
+  [[nodiscard]] bool enabled(std::size_t channel) const noexcept { return bank_.enabled(channel); }
 
   /// `lode set`: enabled (bool), and for a designed notch f_notch_hz, k, zeta.
   [[nodiscard]] std::vector<Tunable> tunables() const override;
@@ -99,20 +91,10 @@ class NotchFilter final : public Block, public Tunables {
 
  private:
   enum TunableIndex : std::size_t { kEnabled = 0, kFrequency = 1, kDepth = 2, kDamping = 3 };
-  /// The first filtered channel (whose design tunable_value() reports), channels_ if none.
-  [[nodiscard]] std::size_t first_filtered() const noexcept;
 
-  double rate_hz_ = 0.0;
   bool designed_ = false;  ///< f_notch_hz, k, zeta exist (not raw coefficients)
-  std::size_t channels_ = 0;
-  Elements elements_;
-  std::vector<notch::ChannelDesign> designs_;
-  std::vector<notch::Section> sections_;               ///< one per channel, sized in configure()
-  std::unique_ptr<std::atomic<bool>[]> enabled_;      ///< one per channel
-  std::vector<double> filtered_value_;                  ///< this cycle's section outputs
-
-  InputPort in_;
-  OutputPort out_;
+  filter::BiquadBank bank_{"filter.notch", "non-finite notch state"};
+  std::vector<notch::ChannelDesign> designs_;  ///< one per filtered channel, in input order
 };
 
 }  // namespace lode::plugins

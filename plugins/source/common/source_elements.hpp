@@ -1,16 +1,16 @@
-// Shared by the reference generators source.step, source.ramp, source.sine, source.zigzag:
-// reading the common parameters (names, units, offset) and handling scheduled time.
+// What the reference generators source.step, source.ramp, source.sine and source.zigzag share:
+// their output (the `out` port, its elements from `names`/`units` and the per-element `offset`
+// it rests at), their per-element runtime parameters (`lode set offset.x`), and reading time
+// parameters against the scheduled tick time.
 //
-// Header-only and not a plugin (no CMakeLists.txt here): each source includes it with
-// `#include "../common/source_elements.hpp"`. Everything here runs in configure(), except
-// elapsed_s() and the ElementTunables lookups, which are RT-safe.
+// The family's library (lode_source_common); a source links it and includes
+// "source_elements.hpp". Everything here runs in configure(), except where a function says
+// RT-safe.
 #pragma once
 
-#include <cmath>
 #include <cstdint>
-#include <cstdio>
+#include <cstddef>
 #include <optional>
-#include <set>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -18,55 +18,13 @@
 #include "lode/sdk/block.hpp"
 #include "lode/sdk/params.hpp"
 #include "lode/sdk/port.hpp"
-#include "lode/sdk/text.hpp"
 
 namespace lode::plugins::source {
 
-/// The output elements of a source and its per-element resting value.
-struct SourceElements {
-  Elements elements;           ///< from `names` and `units`
-  std::vector<double> offset;  ///< from `offset`, default 0 per element
-
-  [[nodiscard]] std::size_t size() const { return elements.size(); }
-};
-
-/// Reads `names` (required, unique, non-empty), `units` (required, same length) and
-/// `offset` (per element, default 0). Problems are recorded in `params` at their key.
-inline SourceElements read_source_elements(Params& params) {
-  SourceElements out;
-  const std::vector<std::string> names = params.texts("names", {});
-  const std::vector<std::string> units = params.texts("units", {});
-  if (!params.has("names") || names.empty()) {
-    params.fail("names", "a non-empty list of element names is required, e.g. [x, y, theta_z]");
-  }
-  std::set<std::string> seen;
-  for (const auto& name : names) {
-    if (name.empty()) params.fail("names", "element names must not be empty");
-    if (!seen.insert(name).second) params.fail("names", "duplicate element name '" + name + "'");
-  }
-  if (!params.has("units")) {
-    params.fail("units", "a list of SI units, one per name, is required, e.g. [m, m, rad]");
-  } else if (units.size() != names.size()) {
-    params.fail("units", "expected " + std::to_string(names.size()) + " units (one per name), got " +
-                             std::to_string(units.size()));
-  }
-  for (std::size_t i = 0; i < names.size(); ++i) {
-    out.elements.push_back({names[i], i < units.size() ? units[i] : std::string("1")});
-  }
-  out.offset = params.numbers("offset", std::vector<double>(names.size(), 0.0), names.size());
-  out.offset.resize(names.size(), 0.0);
-  return out;
-}
-
 /// A per-element list under `key` with exactly `n` entries. Without a fallback the key is
 /// required; with one, an absent key gives n copies of it.
-inline std::vector<double> read_per_element(Params& params, std::string_view key, std::size_t n,
-                                            std::optional<double> fallback = std::nullopt) {
-  std::vector<double> values = fallback ? params.numbers(key, std::vector<double>(n, *fallback), n)
-                                        : params.numbers(key, n);
-  values.resize(n, 0.0);
-  return values;
-}
+std::vector<double> read_per_element(Params& params, std::string_view key, std::size_t n,
+                                     std::optional<double> fallback = std::nullopt);
 
 /// Largest time a parameter may name: keeps every time in int64 nanoseconds with margin.
 inline constexpr double kMaxTimeS = 1.0e9;
@@ -74,21 +32,11 @@ inline constexpr double kMaxTimeS = 1.0e9;
 /// Seconds (a validated parameter) to integer nanoseconds, so that comparisons against the
 /// scheduled tick time are exact: a step at time_s = 0.1 happens on the cycle whose
 /// scheduled time is >= 100000000 ns, never one cycle early or late because of rounding.
-inline std::int64_t seconds_to_ns(double seconds) {
-  return static_cast<std::int64_t>(std::llround(seconds * 1e9));
-}
+std::int64_t seconds_to_ns(double seconds);
 
 /// Reads a time parameter in seconds that must lie in [0, kMaxTimeS]; returns nanoseconds.
 /// Without a fallback the key is required.
-inline std::int64_t read_time_ns(Params& params, std::string_view key,
-                                 std::optional<double> fallback_s = std::nullopt) {
-  const double seconds = fallback_s ? params.number(key, *fallback_s) : params.number(key);
-  if (!(seconds >= 0.0 && seconds <= kMaxTimeS)) {
-    params.fail(key, "must be within [0, 1e9] s, got " + number_text(seconds));
-    return 0;
-  }
-  return seconds_to_ns(seconds);
-}
+std::int64_t read_time_ns(Params& params, std::string_view key, std::optional<double> fallback_s = std::nullopt);
 
 /// Seconds elapsed since `start_ns` at scheduled time `time_ns` (negative before the start).
 /// The difference is taken in integers first, so long runs lose no resolution. RT-safe.
@@ -96,9 +44,9 @@ inline double elapsed_s(std::int64_t time_ns, std::int64_t start_ns) noexcept {
   return static_cast<double>(time_ns - start_ns) * 1e-9;
 }
 
-/// Runtime parameters (`lode set`) that are one number per element of a per-element list
-/// key: `<key>.<element name>`, e.g. `offset.x`. The tunable index is
-/// group * elements + element, with the groups in the order they were added.
+/// Runtime parameters (`lode set`) that are one number per element of a per-element list:
+/// `<key>.<element name>`, e.g. `offset.x`. The tunable index is group * elements + element,
+/// with the groups in the order they were added.
 class ElementTunables {
  public:
   struct Group {
@@ -110,47 +58,72 @@ class ElementTunables {
     std::string description;
   };
 
-  /// Configure time.
-  void add(Group group) { groups_.push_back(std::move(group)); }
+  /// Configure time: a group over `values`, the block's own per-element list, which it
+  /// outlives (blocks are neither copied nor moved).
+  void add(Group group, std::vector<double>& values);
 
   /// Off the RT thread, after configure().
-  [[nodiscard]] std::vector<Tunable> list(const Elements& elements) const {
-    std::vector<Tunable> out;
-    for (const Group& g : groups_) {
-      for (const Element& e : elements) {
-        Tunable t;
-        t.name = g.key + "." + e.name;
-        t.unit = g.unit_override.empty() ? e.unit + g.unit_suffix : g.unit_override;
-        t.min = g.min;
-        t.max = g.max;
-        t.description = g.description + " of " + e.name;
-        out.push_back(std::move(t));
-      }
-    }
-    return out;
-  }
-
-  /// Which group and element an index names; false if out of range. RT-safe.
-  [[nodiscard]] bool locate(std::size_t index, std::size_t elements, std::size_t& group,
-                            std::size_t& element) const noexcept {
-    if (elements == 0 || index >= groups_.size() * elements) return false;
-    group = index / elements;
-    element = index % elements;
-    return true;
-  }
+  [[nodiscard]] std::vector<Tunable> list(const Elements& elements) const;
+  /// The current value; 0 for an index out of range. RT-safe.
+  [[nodiscard]] double value(std::size_t index, std::size_t elements) const noexcept;
+  /// Which group and element an index names; refuses (false, with `why`) an index out of range
+  /// and a value that is not finite. RT-safe: the command path has checked the range already,
+  /// this also catches NaN and infinities from direct callers.
+  bool locate(std::size_t index, std::size_t elements, double value, std::size_t& group, std::size_t& element,
+              const char*& why) const noexcept;
+  /// Stores a located value in its group's list. RT-safe.
+  void store(std::size_t group, std::size_t element, double value) noexcept { (*groups_[group].values)[element] = value; }
 
  private:
-  std::vector<Group> groups_;
+  struct Bound {
+    Group group;
+    std::vector<double>* values;
+  };
+  std::vector<Bound> groups_;
 };
 
-/// The common refusals of a per-element source parameter; RT-safe. The command path has
-/// checked the range already; this also catches NaN and infinities from direct callers.
-inline bool accept_finite(double value, const char*& why) noexcept {
-  if (!std::isfinite(value)) {
-    why = "the value must be finite";
-    return false;
+/// The output of a source: `out` with the elements of `names`/`units`, the per-element
+/// `offset`, and the per-element runtime parameters, `offset.<element>` first (group 0).
+class SourceOutput {
+ public:
+  static constexpr std::size_t kOffsetGroup = 0;
+
+  /// configure(), first: reads `names` (required, unique, non-empty), `units` (required, one
+  /// per name) and `offset` (per element, default 0); problems are recorded at their key.
+  /// `offset_description` describes the offset's runtime parameter.
+  void read(Params& params, std::string offset_description);
+  /// configure(): one more group of per-element runtime parameters over `values`.
+  void add_tunable(ElementTunables::Group group, std::vector<double>& values) {
+    tunables_.add(std::move(group), values);
   }
-  return true;
-}
+  /// configure(), last: declares `out`; the result of configure().
+  Status declare(ConfigureContext& ctx);
+
+  [[nodiscard]] std::size_t size() const noexcept { return elements_.size(); }
+  [[nodiscard]] const std::vector<double>& offset() const noexcept { return offset_; }
+  /// The output port, for step().
+  [[nodiscard]] OutputPort& port() noexcept { return out_; }
+  /// out = offset: activate(), and before a source starts. RT-safe.
+  void write_offset() noexcept;
+  /// describe(): the element count and the offsets.
+  void describe(Json& out) const;
+
+  /// The Block tunables API over the groups; set_tunable() stores the value (a source with
+  /// more to do on a change uses locate() and store()).
+  [[nodiscard]] std::vector<Tunable> tunables() const { return tunables_.list(elements_); }
+  [[nodiscard]] double tunable_value(std::size_t index) const noexcept { return tunables_.value(index, size()); }
+  bool set_tunable(std::size_t index, double value, const char*& why) noexcept;
+  bool locate(std::size_t index, double value, std::size_t& group, std::size_t& element,
+              const char*& why) const noexcept {
+    return tunables_.locate(index, size(), value, group, element, why);
+  }
+  void store(std::size_t group, std::size_t element, double value) noexcept { tunables_.store(group, element, value); }
+
+ private:
+  OutputPort out_;
+  Elements elements_;
+  std::vector<double> offset_;
+  ElementTunables tunables_;
+};
 
 }  // namespace lode::plugins::source

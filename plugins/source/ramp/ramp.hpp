@@ -21,7 +21,7 @@
 
 #include "lode/sdk/block.hpp"
 #include "lode/sdk/tunables.hpp"
-#include "../common/source_elements.hpp"
+#include "source_elements.hpp"
 
 namespace lode::plugins {
 
@@ -39,11 +39,9 @@ class RampSource final : public Block, public Tunables {
   bool set_tunable(std::size_t index, double value, const char*& why) noexcept override;
 
  private:
-  OutputPort out_;
-  std::size_t size_ = 0;
-  Elements elements_;
-  source::ElementTunables tunables_;
-  std::vector<double> offset_;
+  enum TunableGroup : std::size_t { kOffset = source::SourceOutput::kOffsetGroup, kRate };
+
+  source::SourceOutput output_;
   std::vector<double> rate_;  ///< element unit per second
   std::int64_t start_ns_ = 0;
   bool has_duration_ = false;

@@ -19,7 +19,7 @@
 
 #include "lode/sdk/block.hpp"
 #include "lode/sdk/tunables.hpp"
-#include "../common/source_elements.hpp"
+#include "source_elements.hpp"
 
 namespace lode::plugins {
 
@@ -37,12 +37,10 @@ class SineSource final : public Block, public Tunables {
   bool set_tunable(std::size_t index, double value, const char*& why) noexcept override;
 
  private:
-  OutputPort out_;
-  std::size_t size_ = 0;
+  enum TunableGroup : std::size_t { kOffset = source::SourceOutput::kOffsetGroup, kAmplitude, kFrequency };
+
+  source::SourceOutput output_;
   double nyquist_hz_ = 0.0;
-  Elements elements_;
-  source::ElementTunables tunables_;
-  std::vector<double> offset_;
   std::vector<double> amplitude_;
   std::vector<double> frequency_hz_;
   std::vector<double> phase_rad_;

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <string>
 
-#include "../common/source_elements.hpp"
 #include "lode/sdk/plugin.hpp"
 #include "lode/sdk/text.hpp"
 
@@ -11,17 +10,14 @@ namespace lode::plugins {
 
 Status StepSource::configure(ConfigureContext& ctx) {
   Params& params = ctx.params();
-  source::SourceElements elements = source::read_source_elements(params);
-  size_ = elements.size();
-  offset_ = elements.offset;
-  elements_ = elements.elements;
-  tunables_.add({"offset", "", "", -1e300, 1e300, "output before the first step"});
+  output_.read(params, "output before the first step");
+  const std::size_t size = output_.size();
 
   const std::vector<Params> steps = params.items("steps");
   for (std::size_t i = 0; i < steps.size(); ++i) {
     Params step = steps[i];
     const std::int64_t time_ns = source::read_time_ns(step, "time_s");
-    const std::vector<double> value = source::read_per_element(step, "value", size_);
+    const std::vector<double> value = source::read_per_element(step, "value", size);
     if (!step_time_ns_.empty() && time_ns <= step_time_ns_.back()) {
       step.fail("time_s", "steps must be sorted by strictly increasing time_s; " +
                               number_text(static_cast<double>(time_ns) * 1e-9) +
@@ -32,13 +28,11 @@ Status StepSource::configure(ConfigureContext& ctx) {
     step_time_ns_.push_back(time_ns);
     step_values_.insert(step_values_.end(), value.begin(), value.end());
   }
-
-  ctx.declare_output(out_, "out", elements.elements);
-  return params.ok() ? Status::ok() : Status::error("invalid parameters");
+  return output_.declare(ctx);
 }
 
 Status StepSource::activate() {
-  for (std::size_t i = 0; i < size_; ++i) out_[i] = offset_[i];
+  output_.write_offset();
   return Status::ok();
 }
 
@@ -47,39 +41,31 @@ StepStatus StepSource::step(const Tick& tick) noexcept {
   const auto reached = static_cast<std::size_t>(
       std::upper_bound(step_time_ns_.begin(), step_time_ns_.end(), tick.time_ns) -
       step_time_ns_.begin());
-  const double* value = reached == 0 ? offset_.data() : &step_values_[(reached - 1) * size_];
-  for (std::size_t i = 0; i < size_; ++i) out_[i] = value[i];
+  const std::size_t size = output_.size();
+  const double* value = reached == 0 ? output_.offset().data() : &step_values_[(reached - 1) * size];
+  OutputPort& out = output_.port();
+  for (std::size_t i = 0; i < size; ++i) out[i] = value[i];
   return StepStatus::ok;
 }
 
-std::vector<Tunable> StepSource::tunables() const { return tunables_.list(elements_); }
+std::vector<Tunable> StepSource::tunables() const { return output_.tunables(); }
 
-double StepSource::tunable_value(std::size_t index) const noexcept {
-  std::size_t group = 0, element = 0;
-  return tunables_.locate(index, size_, group, element) ? offset_[element] : 0.0;
-}
+double StepSource::tunable_value(std::size_t index) const noexcept { return output_.tunable_value(index); }
 
 bool StepSource::set_tunable(std::size_t index, double value, const char*& why) noexcept {
-  std::size_t group = 0, element = 0;
-  if (!tunables_.locate(index, size_, group, element)) {
-    why = "no such parameter";
-    return false;
-  }
-  if (!source::accept_finite(value, why)) return false;
-  // step() reads offset_ afresh each cycle: the next sample before the first step uses it.
-  offset_[element] = value;
-  return true;
+  // step() reads the offset afresh each cycle: the next sample before the first step uses it.
+  return output_.set_tunable(index, value, why);
 }
 
 void StepSource::describe(Json& out) const {
-  out["elements"] = static_cast<int>(size_);
-  out["offset"] = offset_;
+  output_.describe(out);
+  const std::size_t size = output_.size();
   Json steps = Json::array();
   for (std::size_t s = 0; s < step_time_ns_.size(); ++s) {
     Json step = Json::object();
     step["time_s"] = static_cast<double>(step_time_ns_[s]) * 1e-9;
-    step["value"] = std::vector<double>(step_values_.begin() + static_cast<std::ptrdiff_t>(s * size_),
-                                        step_values_.begin() + static_cast<std::ptrdiff_t>((s + 1) * size_));
+    step["value"] = std::vector<double>(step_values_.begin() + static_cast<std::ptrdiff_t>(s * size),
+                                        step_values_.begin() + static_cast<std::ptrdiff_t>((s + 1) * size));
     steps.push(std::move(step));
   }
   out["steps"] = std::move(steps);

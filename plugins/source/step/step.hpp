@@ -20,7 +20,7 @@
 
 #include "lode/sdk/block.hpp"
 #include "lode/sdk/tunables.hpp"
-#include "../common/source_elements.hpp"
+#include "source_elements.hpp"
 
 namespace lode::plugins {
 
@@ -37,11 +37,7 @@ class StepSource final : public Block, public Tunables {
   bool set_tunable(std::size_t index, double value, const char*& why) noexcept override;
 
  private:
-  OutputPort out_;
-  std::size_t size_ = 0;
-  Elements elements_;
-  source::ElementTunables tunables_;
-  std::vector<double> offset_;
+  source::SourceOutput output_;
   std::vector<std::int64_t> step_time_ns_;  ///< strictly increasing
   std::vector<double> step_values_;         ///< row-major: step x element
 };

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <string>
 
-#include "../common/source_elements.hpp"
 #include "lode/sdk/plugin.hpp"
 #include "lode/sdk/text.hpp"
 
@@ -11,14 +10,10 @@ namespace lode::plugins {
 
 Status ZigzagSource::configure(ConfigureContext& ctx) {
   Params& params = ctx.params();
-  source::SourceElements elements = source::read_source_elements(params);
-  size_ = elements.size();
-  offset_ = elements.offset;
-  amplitude_ = source::read_per_element(params, "amplitude", size_);
-  advance_ = source::read_per_element(params, "advance", size_, 0.0);
-  elements_ = elements.elements;
-  tunables_.add({"offset", "", "", -1e300, 1e300, "start point of the path"});
-  tunables_.add({"amplitude", "", "", -1e300, 1e300, "peak of the triangle sweep above offset"});
+  output_.read(params, "start point of the path");
+  amplitude_ = source::read_per_element(params, "amplitude", output_.size());
+  advance_ = source::read_per_element(params, "advance", output_.size(), 0.0);
+  output_.add_tunable({"amplitude", "", "", -1e300, 1e300, "peak of the triangle sweep above offset"}, amplitude_);
   const double period_s = params.number("period_s");
   if (!(period_s > 0.0 && period_s <= source::kMaxTimeS)) {
     params.fail("period_s", "must be within (0, 1e9] s, got " + number_text(period_s));
@@ -39,20 +34,18 @@ Status ZigzagSource::configure(ConfigureContext& ctx) {
       end_ns_ = cycles * period_ns_;
     }
   }
-
-  ctx.declare_output(out_, "out", elements.elements);
-  return params.ok() ? Status::ok() : Status::error("invalid parameters");
+  return output_.declare(ctx);
 }
 
 Status ZigzagSource::activate() {
-  for (std::size_t i = 0; i < size_; ++i) out_[i] = offset_[i];
+  output_.write_offset();
   return Status::ok();
 }
 
 StepStatus ZigzagSource::step(const Tick& tick) noexcept {
   std::int64_t tau_ns = tick.time_ns - start_ns_;
   if (tau_ns < 0) {
-    for (std::size_t i = 0; i < size_; ++i) out_[i] = offset_[i];
+    output_.write_offset();
     return StepStatus::ok;
   }
   if (has_cycles_) tau_ns = std::min(tau_ns, end_ns_);
@@ -63,36 +56,26 @@ StepStatus ZigzagSource::step(const Tick& tick) noexcept {
                           static_cast<double>(period_ns_);
   const double sweep = (half_periods % 2 == 0) ? fraction : 1.0 - fraction;
   const double progress = static_cast<double>(half_periods) + (advance_in_steps_ ? 0.0 : fraction);
-  for (std::size_t i = 0; i < size_; ++i) {
-    out_[i] = offset_[i] + amplitude_[i] * sweep + advance_[i] * progress;
+  OutputPort& out = output_.port();
+  const std::vector<double>& offset = output_.offset();
+  for (std::size_t i = 0; i < output_.size(); ++i) {
+    out[i] = offset[i] + amplitude_[i] * sweep + advance_[i] * progress;
   }
   return StepStatus::ok;
 }
 
-std::vector<Tunable> ZigzagSource::tunables() const { return tunables_.list(elements_); }
+std::vector<Tunable> ZigzagSource::tunables() const { return output_.tunables(); }
 
-double ZigzagSource::tunable_value(std::size_t index) const noexcept {
-  std::size_t group = 0, element = 0;
-  if (!tunables_.locate(index, size_, group, element)) return 0.0;
-  return group == 0 ? offset_[element] : amplitude_[element];
-}
+double ZigzagSource::tunable_value(std::size_t index) const noexcept { return output_.tunable_value(index); }
 
 bool ZigzagSource::set_tunable(std::size_t index, double value, const char*& why) noexcept {
-  std::size_t group = 0, element = 0;
-  if (!tunables_.locate(index, size_, group, element)) {
-    why = "no such parameter";
-    return false;
-  }
-  if (!source::accept_finite(value, why)) return false;
   // step() is a function of time only: the path from the next sample on is the one the new
   // value describes (a new amplitude rescales the current sweep position).
-  (group == 0 ? offset_ : amplitude_)[element] = value;
-  return true;
+  return output_.set_tunable(index, value, why);
 }
 
 void ZigzagSource::describe(Json& out) const {
-  out["elements"] = static_cast<int>(size_);
-  out["offset"] = offset_;
+  output_.describe(out);
   out["amplitude"] = amplitude_;
   out["advance"] = advance_;
   out["advance_mode"] = advance_in_steps_ ? "step" : "ramp";
@@ -101,9 +84,9 @@ void ZigzagSource::describe(Json& out) const {
   if (has_cycles_) {
     out["cycles"] = static_cast<double>(end_ns_ / period_ns_);
     out["end_s"] = static_cast<double>(start_ns_ + end_ns_) * 1e-9;
-    std::vector<double> final_value(size_);
+    std::vector<double> final_value(output_.size());
     const double half_periods = static_cast<double>(2 * (end_ns_ / period_ns_));
-    for (std::size_t i = 0; i < size_; ++i) final_value[i] = offset_[i] + advance_[i] * half_periods;
+    for (std::size_t i = 0; i < output_.size(); ++i) final_value[i] = output_.offset()[i] + advance_[i] * half_periods;
     out["final_value"] = final_value;
   } else {
     out["cycles"] = nullptr;

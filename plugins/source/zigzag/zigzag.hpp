@@ -29,7 +29,7 @@
 
 #include "lode/sdk/block.hpp"
 #include "lode/sdk/tunables.hpp"
-#include "../common/source_elements.hpp"
+#include "source_elements.hpp"
 
 namespace lode::plugins {
 
@@ -46,11 +46,7 @@ class ZigzagSource final : public Block, public Tunables {
   bool set_tunable(std::size_t index, double value, const char*& why) noexcept override;
 
  private:
-  OutputPort out_;
-  std::size_t size_ = 0;
-  Elements elements_;
-  source::ElementTunables tunables_;
-  std::vector<double> offset_;
+  source::SourceOutput output_;
   std::vector<double> amplitude_;
   std::vector<double> advance_;
   std::int64_t period_ns_ = 0;

@@ -19,12 +19,15 @@
 
 #include "lode/sdk/testing/allocation_counter.hpp"
 #include "lode/sdk/testing/harness.hpp"
+#include "lode/sdk/testing/plugin_checks.hpp"
 
 
 namespace lode::plugins {
 namespace {
 
 using lode::testing::BlockHarness;
+using lode::testing::member;
+using lode::testing::numbers_of;
 using Complex = std::complex<double>;
 
 constexpr double kRateHz = 800.0;
@@ -48,22 +51,6 @@ std::string printed_axis(double gain) {
   std::snprintf(buffer, sizeof buffer, "  - {num_z: [%.17g, %.17g, %.17g], den_z: [1, -1.2423, 0.2423]}\n", gain,
                 -1.9773 * gain, 0.977428 * gain);
   return buffer;
-}
-
-const Json& member(const Json& j, const std::string& key) {
-  const Json* m = j.find(key);
-  if (m == nullptr) {
-    static const Json null;
-    ADD_FAILURE() << "describe() has no '" << key << "'";
-    return null;
-  }
-  return *m;
-}
-
-std::vector<double> numbers_of(const Json& array) {
-  std::vector<double> out;
-  for (const Json& e : array.elements()) out.push_back(e.as_number());
-  return out;
 }
 
 /// num/den (descending powers) of axis i from describe().

@@ -18,12 +18,14 @@
 #include "lode/sdk/math/discretize.hpp"
 #include "lode/sdk/testing/allocation_counter.hpp"
 #include "lode/sdk/testing/harness.hpp"
+#include "lode/sdk/testing/plugin_checks.hpp"
 
 namespace lode::plugins {
 namespace {
 
 using lode::math::Matrix;
 using lode::testing::BlockHarness;
+using lode::testing::member;
 
 const Elements kPlanar{{"x", "m"}, {"y", "m"}, {"phi", "rad"}};
 const Elements kPlanarVelocity{{"x_dot", "m/s"}, {"y_dot", "m/s"}, {"phi_dot", "rad/s"}};
@@ -85,16 +87,6 @@ std::string vertical_mode() {
          "    A: " + list(a.data(), a.size()) + "\n"
          "    input_acceleration: " + list(kVerticalB.data(), 9) + "\n"
          "    Q: [1e4, 1e4, 1e4, 1e9, 1e9, 1e9, 1e2, 1e2, 1e2]\n";
-}
-
-const Json& member(const Json& j, const std::string& key) {
-  const Json* m = j.find(key);
-  if (m == nullptr) {
-    static const Json null;
-    ADD_FAILURE() << "describe() has no '" << key << "'";
-    return null;
-  }
-  return *m;
 }
 
 std::vector<std::vector<double>> matrix_of(const Json& rows) {
@@ -307,9 +299,7 @@ TEST(LqIntegral, TwoModesInOneBlock) {
 void expect_error(const std::string& yaml, const std::string& fragment) {
   BlockHarness h("controller.lq_integral", yaml, 800.0);
   h.feed("measurement", kPlanar);
-  EXPECT_FALSE(h.configure()) << yaml;
-  EXPECT_NE(h.diagnostics().find(fragment), std::string::npos) << "expected '" << fragment << "' in:\n"
-                                                                << h.diagnostics();
+  EXPECT_TRUE(lode::testing::configure_fails_with(h, fragment)) << yaml;
 }
 
 TEST(LqIntegral, ConfigurationErrorsSayWhatIsWrong) {

@@ -15,31 +15,17 @@
 #include <string>
 #include <vector>
 
-#include "lode/sdk/testing/allocation_counter.hpp"
+#include "filter_checks.hpp"
 #include "lode/sdk/testing/harness.hpp"
+#include "lode/sdk/testing/plugin_checks.hpp"
 
 namespace lode::plugins {
 namespace {
 
 using lode::testing::BlockHarness;
+using lode::testing::member;
 
 constexpr double kPi = std::numbers::pi;
-
-const Json& member(const Json& j, const std::string& key) {
-  const Json* m = j.find(key);
-  if (m == nullptr) {
-    static const Json null;
-    ADD_FAILURE() << "describe() has no '" << key << "'";
-    return null;
-  }
-  return *m;
-}
-
-std::vector<double> numbers_of(const Json& array) {
-  std::vector<double> out;
-  for (const Json& e : array.elements()) out.push_back(e.as_number());
-  return out;
-}
 
 /// RBJ cookbook (w = 2 pi f / fs, alpha = sin w / 2Q), normalised by a0: [b0, b1, b2, a1, a2].
 std::array<double, 5> cookbook(const std::string& type, double f, double q, double fs) {
@@ -53,24 +39,6 @@ std::array<double, 5> cookbook(const std::string& type, double f, double q, doub
   if (type == "notch") b = {1.0, -2 * cw, 1.0};
   const double a0 = 1 + alpha;
   return {b[0] / a0, b[1] / a0, b[2] / a0, -2 * cw / a0, (1 - alpha) / a0};
-}
-
-/// Steady-state gain of channel 0 at f_hz, measured with a sine.
-double measured_gain(BlockHarness& h, double f_hz, double fs) {
-  EXPECT_TRUE(h.activate());
-  const auto in = h.input("in");
-  double ss = 0, sc = 0, cc = 0, ys = 0, yc = 0;
-  const int settle = 4 * static_cast<int>(fs);
-  for (int k = 0; k < settle + 4 * static_cast<int>(fs); ++k) {
-    in[0] = std::sin(2 * kPi * f_hz * k / fs);
-    EXPECT_EQ(h.step(), StepStatus::ok);
-    if (k < settle) continue;
-    const double s = std::sin(2 * kPi * f_hz * k / fs), c = std::cos(2 * kPi * f_hz * k / fs);
-    const double y = h.output("out")[0];
-    ss += s * s, sc += s * c, cc += c * c, ys += y * s, yc += y * c;
-  }
-  const double det = ss * cc - sc * sc;
-  return std::hypot((ys * cc - yc * sc) / det, (yc * ss - ys * sc) / det);
 }
 
 TEST(FilterBiquad, DesignedFormsEqualTheCookbook) {
@@ -89,8 +57,7 @@ TEST(FilterBiquad, DesignedFormsEqualTheCookbook) {
     ASSERT_TRUE(h.configure()) << h.diagnostics();
     const Json d = h.describe();
     const Json& x = member(d, "channels").elements().at(0);
-    const std::vector<double> b = numbers_of(member(x, "b"));
-    const std::vector<double> a = numbers_of(member(x, "a"));
+    const auto [b, a] = filter::testing::described_section(x);
     const std::array<double, 5> expected = cookbook(c.type, c.f, c.q, c.fs);
     const std::array<double, 5> got{b[0], b[1], b[2], a[1], a[2]};
     for (std::size_t i = 0; i < 5; ++i) {
@@ -105,7 +72,7 @@ TEST(FilterBiquad, MeasuredResponsesAtTheirDefiningFrequencies) {
     BlockHarness h("filter.biquad", yaml, fs);
     h.feed("in", {{"x", "m"}});
     EXPECT_TRUE(h.configure()) << h.diagnostics();
-    return measured_gain(h, f, fs);
+    return filter::testing::measured_gain(h, f, fs, 4 * static_cast<int>(fs));
   };
   // Butterworth low/high-pass: -3.01 dB exactly at the (prewarped) corner.
   EXPECT_NEAR(gain("type: lowpass\nf_hz: 100\n", 100), std::sqrt(0.5), 1e-6);
@@ -173,9 +140,7 @@ TEST(FilterBiquad, ChannelSelectionAndBypass) {
 void expect_error(const std::string& yaml, const std::string& fragment) {
   BlockHarness h("filter.biquad", yaml, 800.0);
   h.feed("in", {{"x", "m"}, {"y", "m"}});
-  EXPECT_FALSE(h.configure()) << yaml;
-  EXPECT_NE(h.diagnostics().find(fragment), std::string::npos) << "expected '" << fragment << "' in:\n"
-                                                                << h.diagnostics();
+  EXPECT_TRUE(lode::testing::configure_fails_with(h, fragment)) << yaml;
 }
 
 TEST(FilterBiquad, ConfigurationErrorsSayWhatIsWrong) {
@@ -190,19 +155,15 @@ TEST(FilterBiquad, ConfigurationErrorsSayWhatIsWrong) {
 }
 
 TEST(FilterBiquad, FaultsOnNonFiniteInputAndDoesNotAllocate) {
-  LODE_REQUIRE_ALLOCATION_COUNTING();
   BlockHarness h("filter.biquad", "type: bandpass\nf_hz: [50, 70]\nq: 3\n", 800.0);
   h.feed("in", {{"x", "m"}, {"y", "m"}});
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   ASSERT_TRUE(h.activate());
   const auto in = h.input("in");
-  const std::size_t before = lode::testing::allocation_count();
-  for (int k = 0; k < 20000; ++k) {
+  filter::testing::expect_cycles_allocate_nothing(h, 20000, [&](int k) {
     in[0] = std::sin(0.4 * k);
     in[1] = std::cos(0.5 * k);
-    ASSERT_EQ(h.step(), StepStatus::ok);
-  }
-  EXPECT_EQ(lode::testing::allocation_count() - before, 0u);
+  });
   in[0] = std::numeric_limits<double>::quiet_NaN();
   EXPECT_EQ(h.step(), StepStatus::fault);
   EXPECT_STREQ(h.block().fault_reason(), "non-finite input");
@@ -258,7 +219,6 @@ TEST(FilterBiquadTunables, RefusedValuesChangeNothing) {
 }
 
 TEST(FilterBiquadTunables, SetTunableAllocatesNothing) {
-  LODE_REQUIRE_ALLOCATION_COUNTING();
   BlockHarness h("filter.biquad", "type: bandpass\nf_hz: [50, 70]\nq: 3\n", 800.0);
   h.feed("in", {{"x", "m"}, {"y", "m"}});
   ASSERT_TRUE(h.configure()) << h.diagnostics();
@@ -267,14 +227,11 @@ TEST(FilterBiquadTunables, SetTunableAllocatesNothing) {
   const auto in = h.input("in");
   const char* why = "";
   int accepted = 0;
-  const std::size_t before = lode::testing::allocation_count();
-  for (int k = 0; k < 1000; ++k) {
+  filter::testing::expect_cycles_allocate_nothing(h, 1000, [&](int k) {
     accepted += block.set_tunable(0, (k % 2) ? 1.0 : 0.0, why) ? 1 : 0;
     (void)block.set_tunable(0, 0.5, why);
     in[0] = std::sin(0.4 * k);
-    h.step();
-  }
-  EXPECT_EQ(lode::testing::allocation_count() - before, 0u);
+  });
   EXPECT_EQ(accepted, 1000);
 }
 

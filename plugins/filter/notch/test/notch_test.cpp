@@ -14,61 +14,25 @@
 #include <string>
 #include <vector>
 
+#include "filter_checks.hpp"
 #include "lode/sdk/math/discretize.hpp"
-#include "lode/sdk/testing/allocation_counter.hpp"
 #include "lode/sdk/testing/harness.hpp"
+#include "lode/sdk/testing/plugin_checks.hpp"
 
 namespace lode::plugins {
 namespace {
 
 using lode::testing::BlockHarness;
+using lode::testing::member;
+using filter::testing::component;
 
 constexpr double kPi = std::numbers::pi;
 const Elements kPlanar{{"x", "m"}, {"y", "m"}, {"phi", "rad"}};
 
-const Json& member(const Json& j, const std::string& key) {
-  const Json* m = j.find(key);
-  if (m == nullptr) {
-    static const Json null;
-    ADD_FAILURE() << "describe() has no '" << key << "'";
-    return null;
-  }
-  return *m;
-}
-
-std::vector<double> numbers_of(const Json& array) {
-  std::vector<double> out;
-  for (const Json& e : array.elements()) out.push_back(e.as_number());
-  return out;
-}
-
-/// Amplitude and phase of the f_hz component of y[k] (sampled at rate_hz) by least squares
-/// on sin/cos over the samples.
-std::complex<double> component(const std::vector<double>& y, double f_hz, double rate_hz) {
-  double ss = 0, sc = 0, cc = 0, ys = 0, yc = 0;
-  for (std::size_t k = 0; k < y.size(); ++k) {
-    const double s = std::sin(2 * kPi * f_hz * static_cast<double>(k) / rate_hz);
-    const double c = std::cos(2 * kPi * f_hz * static_cast<double>(k) / rate_hz);
-    ss += s * s, sc += s * c, cc += c * c, ys += y[k] * s, yc += y[k] * c;
-  }
-  const double det = ss * cc - sc * sc;
-  const double a = (ys * cc - yc * sc) / det;  // y ~ a sin + b cos
-  const double b = (yc * ss - ys * sc) / det;
-  return {a, b};  // a sin + b cos = Im((a + jb) e^{jwt})... amplitude |a + jb|
-}
-
-/// The 1-channel filter's steady-state gain at f_hz, measured by running a sine through it.
+/// The 1-channel filter's steady-state gain at f_hz after 1 s: the slowest poles (|z| ~ 0.9)
+/// are long settled.
 double measured_gain(BlockHarness& h, double f_hz, double rate_hz) {
-  EXPECT_TRUE(h.activate());
-  const auto in = h.input("in");
-  std::vector<double> out;
-  const int settle = static_cast<int>(rate_hz);  // 1 s: the slowest poles (|z| ~ 0.9) are long settled
-  for (int k = 0; k < settle + 4 * static_cast<int>(rate_hz); ++k) {
-    in[0] = std::sin(2 * kPi * f_hz * k / rate_hz);
-    EXPECT_EQ(h.step(), StepStatus::ok);
-    if (k >= settle) out.push_back(h.output("out")[0]);
-  }
-  return std::abs(component(out, f_hz, rate_hz));
+  return filter::testing::measured_gain(h, f_hz, rate_hz, static_cast<int>(rate_hz));
 }
 
 // --- coefficients -------------------------------------------------------------------------
@@ -88,8 +52,7 @@ TEST(FilterNotch, Seed003ReferenceCoefficients) {
     ASSERT_TRUE(h.configure()) << h.diagnostics();
     const Json d = h.describe();
     const Json& x = member(d, "channels").elements().at(0);
-    const std::vector<double> b = numbers_of(member(x, "b"));
-    const std::vector<double> a = numbers_of(member(x, "a"));
+    const auto [b, a] = filter::testing::described_section(x);
     std::printf("fs %6.1f Hz: b = [%.6f, %.6f, %.6f], a = [1, %.6f, %.6f]\n", row.fs, b[0], b[1], b[2], a[1], a[2]);
     EXPECT_NEAR(b[0], row.b0, 6e-7);
     EXPECT_NEAR(b[1], row.b1, 6e-7);
@@ -131,9 +94,7 @@ TEST(FilterNotch, MeasuredResponseFollowsTheDesignAndTheAnalogEq31) {
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   const Json d = h.describe();
   const Json& x = member(d, "channels").elements().at(0);
-  const std::vector<double> b = numbers_of(member(x, "b"));
-  const std::vector<double> a = numbers_of(member(x, "a"));
-  const lode::math::TransferFunction digital{b, a};
+  const lode::math::TransferFunction digital = filter::testing::described_section(x);
   const double w0 = 2 * kPi * 50 * std::sqrt(0.1);
   const lode::math::TransferFunction analog{{0.1, 0.0, w0 * w0}, {1.0, w0, w0 * w0}};
   // The analog eq. 31 with zeta = 0.5, computed independently and rounded to 0.1 dB.
@@ -189,7 +150,7 @@ TEST(FilterNotch, RemovesA50HzLineFromASignal) {
   const double motion_gain = std::abs(component(x_out, 2, fs)) / std::abs(component(x_in, 2, fs));
   const Json d = h.describe();
   const Json& x = member(d, "channels").elements().at(0);
-  const lode::math::TransferFunction design{numbers_of(member(x, "b")), numbers_of(member(x, "a"))};
+  const lode::math::TransferFunction design = filter::testing::described_section(x);
   EXPECT_NEAR(motion_gain, std::abs(lode::math::discrete_response(design, 2 * kPi * 2, 1 / fs)), 1e-6)
       << "the 2 Hz motion passes with the design's gain (+0.05 dB: eq. 31 peaks slightly below w0)";
   EXPECT_NEAR(20 * std::log10(motion_gain), 0.0, 0.1);
@@ -254,9 +215,7 @@ TEST(FilterNotch, RunTimeBypassIsExactAndReEnablingHasNoTransient) {
 void expect_error(const std::string& yaml, const std::string& fragment) {
   BlockHarness h("filter.notch", yaml, 800.0);
   h.feed("in", kPlanar);
-  EXPECT_FALSE(h.configure()) << yaml;
-  EXPECT_NE(h.diagnostics().find(fragment), std::string::npos) << "expected '" << fragment << "' in:\n"
-                                                                << h.diagnostics();
+  EXPECT_TRUE(lode::testing::configure_fails_with(h, fragment)) << yaml;
 }
 
 TEST(FilterNotch, ConfigurationErrorsSayWhatIsWrong) {
@@ -272,18 +231,12 @@ TEST(FilterNotch, ConfigurationErrorsSayWhatIsWrong) {
 }
 
 TEST(FilterNotch, FaultsOnNonFiniteInputAndDoesNotAllocate) {
-  LODE_REQUIRE_ALLOCATION_COUNTING();
   BlockHarness h("filter.notch", "f_notch_hz: [50, 50, 60]\n", 800.0);
   h.feed("in", kPlanar);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   ASSERT_TRUE(h.activate());
   const auto in = h.input("in");
-  const std::size_t before = lode::testing::allocation_count();
-  for (int k = 0; k < 20000; ++k) {
-    in[0] = std::sin(0.3 * k);
-    ASSERT_EQ(h.step(), StepStatus::ok);
-  }
-  EXPECT_EQ(lode::testing::allocation_count() - before, 0u);
+  filter::testing::expect_cycles_allocate_nothing(h, 20000, [&](int k) { in[0] = std::sin(0.3 * k); });
   const double previous = h.output("out")[0];
   in[1] = std::numeric_limits<double>::infinity();
   EXPECT_EQ(h.step(), StepStatus::fault);
@@ -372,8 +325,7 @@ TEST(FilterNotchTunables, RetuneTakesEffectAtTheNextStepFromTheSignalHistory) {
   EXPECT_EQ(h.tunables().tunable_value(1), 60.0);
   const Json described = h.describe();
   const Json& c = member(described, "channels").elements().at(0);
-  const std::vector<double> b = numbers_of(member(c, "b"));
-  const std::vector<double> a = numbers_of(member(c, "a"));
+  const auto [b, a] = filter::testing::described_section(c);
   EXPECT_NEAR(member(c, "gain_at_f_notch_db").as_number(), 20 * std::log10(0.01), 1e-9) << "redesigned at 60 Hz";
   // The next output is the new difference equation on the actual history (direct form I switch).
   in[0] = input(kSwitch);
@@ -465,7 +417,6 @@ TEST(FilterNotchTunables, EnabledSwitchesBypass) {
 }
 
 TEST(FilterNotchTunables, SetTunableAllocatesNothing) {
-  LODE_REQUIRE_ALLOCATION_COUNTING();
   BlockHarness h("filter.notch", "f_notch_hz: [50, 50, 60]\n", 800.0);
   h.feed("in", kPlanar);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
@@ -474,16 +425,13 @@ TEST(FilterNotchTunables, SetTunableAllocatesNothing) {
   const auto in = h.input("in");
   const char* why = "";
   int accepted = 0;
-  const std::size_t before = lode::testing::allocation_count();
-  for (int k = 0; k < 1000; ++k) {
+  filter::testing::expect_cycles_allocate_nothing(h, 1000, [&](int k) {
     accepted += block.set_tunable(1, (k % 2) ? 50.0 : 60.0, why) ? 1 : 0;
     accepted += block.set_tunable(3, (k % 2) ? 0.5 : 0.3, why) ? 1 : 0;
     accepted += block.set_tunable(0, (k % 3) ? 1.0 : 0.0, why) ? 1 : 0;
     (void)block.set_tunable(1, 400.0, why);
     in[0] = std::sin(0.3 * k);
-    h.step();
-  }
-  EXPECT_EQ(lode::testing::allocation_count() - before, 0u);
+  });
   EXPECT_EQ(accepted, 3000);
 }
 

@@ -7,12 +7,13 @@
 #include <limits>
 #include <string>
 
-#include "lode/sdk/testing/allocation_counter.hpp"
 #include "lode/sdk/testing/harness.hpp"
+#include "source_tunable_checks.hpp"
 
 namespace {
 
 using lode::testing::BlockHarness;
+using namespace lode::plugins::source::testing;  // the family's checks of runtime parameters
 
 constexpr double kRateHz = 1000.0;  // tick k at exactly k ms
 
@@ -90,36 +91,13 @@ TEST(SourceRamp, DescribeGivesTheFinalValue) {
   EXPECT_EQ(d.find("final_value")->elements()[0].as_number(), 7.0);
 }
 
-/// set_tunable() (accepted and refused) and step() together allocate nothing.
-void expect_no_allocation(BlockHarness& h, std::size_t index, double a, double b) {
-  lode::Tunables& block = h.tunables();
-  const char* why = "";
-  int accepted = 0;
-  const auto before = lode::testing::allocation_count();
-  for (int k = 0; k < 1000; ++k) {
-    accepted += block.set_tunable(index, (k % 2) ? a : b, why) ? 1 : 0;
-    (void)block.set_tunable(index, std::nan(""), why);
-    (void)block.set_tunable(1000000, 1.0, why);
-    h.step();
-  }
-  EXPECT_EQ(lode::testing::allocation_count() - before, 0u);
-  EXPECT_EQ(accepted, 1000);
-}
-
 // ---- Runtime parameters (lode set) ----
 
 TEST(SourceRampTunables, OffsetAndRatePerElement) {
   BlockHarness h("source.ramp", "names: [x, theta_z]\nunits: [m, rad]\nrate: [1e-3, 2e-3]\n", 1000.0);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
-  const auto t = h.tunables().tunables();
-  ASSERT_EQ(t.size(), 4u);
-  EXPECT_EQ(t[0].name, "offset.x");
-  EXPECT_EQ(t[0].unit, "m");
-  EXPECT_EQ(t[1].name, "offset.theta_z");
-  EXPECT_EQ(t[2].name, "rate.x");
-  EXPECT_EQ(t[2].unit, "m/s");
-  EXPECT_EQ(t[3].name, "rate.theta_z");
-  EXPECT_EQ(t[3].unit, "rad/s");
+  expect_tunables(h.block(),
+                  {{"offset.x", "m"}, {"offset.theta_z", "rad"}, {"rate.x", "m/s"}, {"rate.theta_z", "rad/s"}});
   EXPECT_DOUBLE_EQ(h.tunables().tunable_value(3), 2e-3);
 }
 
@@ -145,31 +123,20 @@ TEST(SourceRampTunables, NewRateBendsTheRampWithoutAJump) {
 }
 
 TEST(SourceRampTunables, RefusedValuesChangeNothing) {
-  BlockHarness h("source.ramp", "names: [x]\nunits: [m]\nrate: [1e-3]\n", 1000.0);
-  BlockHarness twin("source.ramp", "names: [x]\nunits: [m]\nrate: [1e-3]\n", 1000.0);
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(twin.configure());
-  ASSERT_TRUE(h.activate());
-  ASSERT_TRUE(twin.activate());
-  for (int k = 0; k < 300; ++k) {
-    if (k == 100) {
-      const char* why = "";
-      EXPECT_FALSE(h.tunables().set_tunable(1, std::numeric_limits<double>::infinity(), why));
-      EXPECT_STRNE(why, "");
-      EXPECT_FALSE(h.tunables().set_tunable(2, 1.0, why));
-      EXPECT_DOUBLE_EQ(h.tunables().tunable_value(1), 1e-3);
-    }
-    h.step();
-    twin.step();
-    ASSERT_EQ(h.output("out")[0], twin.output("out")[0]) << k;
-  }
+  expect_refusals_change_nothing("source.ramp", "names: [x]\nunits: [m]\nrate: [1e-3]\n", 1000.0, [](lode::Block& b) {
+    const char* why = "";
+    EXPECT_FALSE(b.set_tunable(1, std::numeric_limits<double>::infinity(), why));
+    EXPECT_STRNE(why, "");
+    EXPECT_FALSE(b.set_tunable(2, 1.0, why));
+    EXPECT_DOUBLE_EQ(b.tunable_value(1), 1e-3);
+  });
 }
 
 TEST(SourceRampTunables, SetTunableAllocatesNothing) {
   BlockHarness h("source.ramp", "names: [x]\nunits: [m]\nrate: [1e-3]\n", 1000.0);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   ASSERT_TRUE(h.activate());
-  expect_no_allocation(h, 1, 1e-3, -1e-3);
+  expect_set_tunable_allocates_nothing(h, 1, 1e-3, -1e-3);
 }
 
 }  // namespace

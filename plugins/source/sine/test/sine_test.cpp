@@ -7,12 +7,13 @@
 #include <numbers>
 #include <string>
 
-#include "lode/sdk/testing/allocation_counter.hpp"
 #include "lode/sdk/testing/harness.hpp"
+#include "source_tunable_checks.hpp"
 
 namespace {
 
 using lode::testing::BlockHarness;
+using namespace lode::plugins::source::testing;  // the family's checks of runtime parameters
 
 constexpr double kRateHz = 1000.0;  // tick k at exactly k ms
 
@@ -77,35 +78,14 @@ phase_rad: [0])",
   }
 }
 
-/// set_tunable() (accepted and refused) and step() together allocate nothing.
-void expect_no_allocation(BlockHarness& h, std::size_t index, double a, double b) {
-  lode::Tunables& block = h.tunables();
-  const char* why = "";
-  int accepted = 0;
-  const auto before = lode::testing::allocation_count();
-  for (int k = 0; k < 1000; ++k) {
-    accepted += block.set_tunable(index, (k % 2) ? a : b, why) ? 1 : 0;
-    (void)block.set_tunable(index, std::nan(""), why);
-    (void)block.set_tunable(1000000, 1.0, why);
-    h.step();
-  }
-  EXPECT_EQ(lode::testing::allocation_count() - before, 0u);
-  EXPECT_EQ(accepted, 1000);
-}
-
 // ---- Runtime parameters (lode set) ----
 
 TEST(SourceSineTunables, OffsetAmplitudeAndFrequencyUpToNyquist) {
   BlockHarness h("source.sine", "names: [x]\nunits: [m]\namplitude: [1e-4]\nfrequency_hz: [10]\n", kRateHz);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
+  expect_tunables(h.block(), {{"offset.x", "m"}, {"amplitude.x", "m"}, {"frequency_hz.x", "Hz"}});
   const auto t = h.tunables().tunables();
   ASSERT_EQ(t.size(), 3u);
-  EXPECT_EQ(t[0].name, "offset.x");
-  EXPECT_EQ(t[0].unit, "m");
-  EXPECT_EQ(t[1].name, "amplitude.x");
-  EXPECT_EQ(t[1].unit, "m");
-  EXPECT_EQ(t[2].name, "frequency_hz.x");
-  EXPECT_EQ(t[2].unit, "Hz");
   EXPECT_EQ(t[2].min, 0.0);
   EXPECT_EQ(t[2].max, 500.0);
   EXPECT_DOUBLE_EQ(h.tunables().tunable_value(2), 10.0);
@@ -134,33 +114,22 @@ TEST(SourceSineTunables, NewFrequencyKeepsThePhaseOfTheLastSample) {
 
 TEST(SourceSineTunables, RefusedValuesChangeNothing) {
   const char* params = "names: [u]\nunits: [N]\namplitude: [1]\nfrequency_hz: [10]\n";
-  BlockHarness h("source.sine", params, kRateHz);
-  BlockHarness twin("source.sine", params, kRateHz);
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(twin.configure());
-  ASSERT_TRUE(h.activate());
-  ASSERT_TRUE(twin.activate());
-  for (int k = 0; k < 300; ++k) {
-    if (k == 100) {
-      const char* why = "";
-      EXPECT_FALSE(h.tunables().set_tunable(2, 600.0, why)) << "above Nyquist (500 Hz)";
-      EXPECT_NE(std::string(why).find("Nyquist"), std::string::npos) << why;
-      EXPECT_FALSE(h.tunables().set_tunable(2, -1.0, why));
-      EXPECT_FALSE(h.tunables().set_tunable(1, std::nan(""), why));
-      EXPECT_FALSE(h.tunables().set_tunable(3, 1.0, why));
-      EXPECT_DOUBLE_EQ(h.tunables().tunable_value(2), 10.0);
-    }
-    h.step();
-    twin.step();
-    ASSERT_EQ(h.output("out")[0], twin.output("out")[0]) << k;
-  }
+  expect_refusals_change_nothing("source.sine", params, kRateHz, [](lode::Block& b) {
+    const char* why = "";
+    EXPECT_FALSE(b.set_tunable(2, 600.0, why)) << "above Nyquist (500 Hz)";
+    EXPECT_NE(std::string(why).find("Nyquist"), std::string::npos) << why;
+    EXPECT_FALSE(b.set_tunable(2, -1.0, why));
+    EXPECT_FALSE(b.set_tunable(1, std::nan(""), why));
+    EXPECT_FALSE(b.set_tunable(3, 1.0, why));
+    EXPECT_DOUBLE_EQ(b.tunable_value(2), 10.0);
+  });
 }
 
 TEST(SourceSineTunables, SetTunableAllocatesNothing) {
   BlockHarness h("source.sine", "names: [u]\nunits: [N]\namplitude: [1]\nfrequency_hz: [10]\n", kRateHz);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   ASSERT_TRUE(h.activate());
-  expect_no_allocation(h, 2, 20.0, 30.0);
+  expect_set_tunable_allocates_nothing(h, 2, 20.0, 30.0);
 }
 
 }  // namespace

@@ -6,12 +6,13 @@
 #include <cmath>
 #include <string>
 
-#include "lode/sdk/testing/allocation_counter.hpp"
 #include "lode/sdk/testing/harness.hpp"
+#include "source_tunable_checks.hpp"
 
 namespace {
 
 using lode::testing::BlockHarness;
+using namespace lode::plugins::source::testing;  // the family's checks of runtime parameters
 
 // 1 kHz: the harness's tick k is scheduled at exactly k ms.
 constexpr double kRateHz = 1000.0;
@@ -133,34 +134,15 @@ TEST(SourceStep, DescribeListsTheSteps) {
   EXPECT_EQ(d.find("steps")->elements()[0].find("time_s")->as_number(), 0.5);
 }
 
-/// set_tunable() (accepted and refused) and step() together allocate nothing.
-void expect_no_allocation(BlockHarness& h, std::size_t index, double a, double b) {
-  lode::Tunables& block = h.tunables();
-  const char* why = "";
-  int accepted = 0;
-  const auto before = lode::testing::allocation_count();
-  for (int k = 0; k < 1000; ++k) {
-    accepted += block.set_tunable(index, (k % 2) ? a : b, why) ? 1 : 0;
-    (void)block.set_tunable(index, std::nan(""), why);
-    (void)block.set_tunable(1000000, 1.0, why);
-    h.step();
-  }
-  EXPECT_EQ(lode::testing::allocation_count() - before, 0u);
-  EXPECT_EQ(accepted, 1000);
-}
-
 // ---- Runtime parameters (lode set) ----
 
 TEST(SourceStepTunables, OffsetPerElementWithItsUnit) {
   BlockHarness h("source.step", "names: [x, theta_z]\nunits: [m, rad]\noffset: [1e-3, 0]\n"
                                 "steps: [{time_s: 0.5, value: [2e-3, 1e-3]}]\n", 1000.0);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
+  expect_tunables(h.block(), {{"offset.x", "m"}, {"offset.theta_z", "rad"}});
   const auto t = h.tunables().tunables();
   ASSERT_EQ(t.size(), 2u);
-  EXPECT_EQ(t[0].name, "offset.x");
-  EXPECT_EQ(t[0].unit, "m");
-  EXPECT_EQ(t[1].name, "offset.theta_z");
-  EXPECT_EQ(t[1].unit, "rad");
   EXPECT_FALSE(t[0].integer);
   EXPECT_LE(t[0].min, -1e300);
   EXPECT_GE(t[0].max, 1e300);
@@ -196,7 +178,7 @@ TEST(SourceStepTunables, SetTunableAllocatesNothing) {
   BlockHarness h("source.step", "names: [x]\nunits: [m]\nsteps: [{time_s: 0.5, value: [2e-3]}]\n", 1000.0);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   ASSERT_TRUE(h.activate());
-  expect_no_allocation(h, 0, 1e-3, -1e-3);
+  expect_set_tunable_allocates_nothing(h, 0, 1e-3, -1e-3);
 }
 
 }  // namespace

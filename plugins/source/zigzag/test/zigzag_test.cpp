@@ -7,12 +7,13 @@
 #include <cmath>
 #include <string>
 
-#include "lode/sdk/testing/allocation_counter.hpp"
 #include "lode/sdk/testing/harness.hpp"
+#include "source_tunable_checks.hpp"
 
 namespace {
 
 using lode::testing::BlockHarness;
+using namespace lode::plugins::source::testing;  // the family's checks of runtime parameters
 
 constexpr double kRateHz = 1000.0;  // tick k at exactly k ms
 
@@ -127,35 +128,13 @@ TEST(SourceZigzag, DescribeGivesTheEnd) {
   EXPECT_NEAR(d.find("final_value")->elements()[1].as_number(), 2e-3 + 4e-3, 1e-18);
 }
 
-/// set_tunable() (accepted and refused) and step() together allocate nothing.
-void expect_no_allocation(BlockHarness& h, std::size_t index, double a, double b) {
-  lode::Tunables& block = h.tunables();
-  const char* why = "";
-  int accepted = 0;
-  const auto before = lode::testing::allocation_count();
-  for (int k = 0; k < 1000; ++k) {
-    accepted += block.set_tunable(index, (k % 2) ? a : b, why) ? 1 : 0;
-    (void)block.set_tunable(index, std::nan(""), why);
-    (void)block.set_tunable(1000000, 1.0, why);
-    h.step();
-  }
-  EXPECT_EQ(lode::testing::allocation_count() - before, 0u);
-  EXPECT_EQ(accepted, 1000);
-}
-
 // ---- Runtime parameters (lode set) ----
 
 TEST(SourceZigzagTunables, OffsetAndAmplitudePerElement) {
   BlockHarness h("source.zigzag", "names: [x, y]\nunits: [m, m]\namplitude: [1e-3, 0]\nadvance: [0, 1e-4]\n"
                                   "period_s: 1\n", 1000.0);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
-  const auto t = h.tunables().tunables();
-  ASSERT_EQ(t.size(), 4u);
-  EXPECT_EQ(t[0].name, "offset.x");
-  EXPECT_EQ(t[1].name, "offset.y");
-  EXPECT_EQ(t[2].name, "amplitude.x");
-  EXPECT_EQ(t[3].name, "amplitude.y");
-  EXPECT_EQ(t[2].unit, "m");
+  expect_tunables(h.block(), {{"offset.x", "m"}, {"offset.y", "m"}, {"amplitude.x", "m"}, {"amplitude.y", "m"}});
   EXPECT_DOUBLE_EQ(h.tunables().tunable_value(2), 1e-3);
 }
 
@@ -186,7 +165,7 @@ TEST(SourceZigzagTunables, SetTunableAllocatesNothing) {
   BlockHarness h("source.zigzag", "names: [x]\nunits: [m]\namplitude: [1e-3]\nperiod_s: 1\n", 1000.0);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   ASSERT_TRUE(h.activate());
-  expect_no_allocation(h, 1, 1e-3, 2e-3);
+  expect_set_tunable_allocates_nothing(h, 1, 1e-3, 2e-3);
 }
 
 }  // namespace
