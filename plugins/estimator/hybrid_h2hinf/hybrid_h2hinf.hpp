@@ -51,28 +51,23 @@
 #include <string>
 #include <vector>
 
+#include "estimator/linear_axes.hpp"
 #include "lode/block.hpp"
 
 namespace lode::plugins {
 
 namespace hybrid {
 
-inline constexpr std::size_t kMaxAxes = 6;
-
-/// Index names of the per-axis state.
-inline constexpr int kPosition = 0;
-inline constexpr int kVelocity = 1;
-inline constexpr int kAcceleration = 2;
+using estimator::kAcceleration;
+using estimator::kMaxAxes;
+using estimator::kPosition;
+using estimator::kVelocity;
 
 using Matrix3 = Eigen::Matrix3d;
 using Vector3 = Eigen::Vector3d;
 
-/// Phi and Upsilon of eq. 23 for one axis at period t_s.
-struct AxisModel {
-  Matrix3 phi = Matrix3::Identity();
-  Vector3 upsilon = Vector3::Zero();
-  static AxisModel make(double t_s);
-};
+/// Phi and Upsilon of eq. 23 for one axis (MotionModel<3>::make(t_s)).
+using AxisModel = estimator::MotionModel<3>;
 
 /// Steady-state Kalman (H2) gain of one axis (eqs. 26-28).
 struct KalmanDesign {
@@ -226,10 +221,7 @@ class HybridH2HinfEstimator final : public Block {
 
   // Ports.
   InputPort measurement_;
-  OutputPort pose_;
-  OutputPort velocity_;
-  OutputPort acceleration_;
-  OutputPort innovation_;
+  estimator::AxisOutputs outputs_;
 
   // State: x^-_k per axis (the prior of the coming step; x^+ is formed in step()).
   std::array<hybrid::Vector3, hybrid::kMaxAxes> prior_{};

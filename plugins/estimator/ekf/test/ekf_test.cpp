@@ -236,6 +236,6 @@ TEST(EkfBlock, UnknownJacobianChoiceAndMissingInputAreErrors) {
 }
 
 constexpr const char* kStatePlugin = "estimator.ekf";
-#include "../../nonlinear_common/test/model_estimator_state_tests.inc"
+#include "estimator/testing/model_estimator_state_tests.inc"
 
 }  // namespace

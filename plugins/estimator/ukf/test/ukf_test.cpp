@@ -516,6 +516,6 @@ TEST(UkfBlock, StepDoesNotAllocate) {
 }
 
 constexpr const char* kStatePlugin = "estimator.ukf";
-#include "../../nonlinear_common/test/model_estimator_state_tests.inc"
+#include "estimator/testing/model_estimator_state_tests.inc"
 
 }  // namespace
