@@ -96,16 +96,10 @@ void ModelEstimator::describe(Json& out) const {
   if (process_ && measurement_ && n_ > 0) describe_linearisation(out);
   if (process_) {
     if (const auto* plant = dynamic_cast<const PlantModel*>(process_.get()); plant != nullptr) {
-      Json model = Json::object();
-      plant->describe(model);
-      out["process_model"] = std::move(model);
+      out["process_model"] = estimator::description_of(*plant);
     }
   }
-  if (measurement_) {
-    Json model = Json::object();
-    measurement_->describe(model);
-    out["measurement_model"] = std::move(model);
-  }
+  if (measurement_) out["measurement_model"] = estimator::description_of(*measurement_);
 }
 
 }  // namespace lode::plugins::nonlinear

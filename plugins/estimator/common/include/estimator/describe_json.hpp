@@ -1,4 +1,4 @@
-// Matrices and vectors as describe() JSON, the form every estimator reports its gains,
+// Matrices, vectors and models as describe() JSON, the form every estimator reports its gains,
 // covariances and models in (off the RT thread: it allocates).
 #pragma once
 
@@ -26,6 +26,14 @@ template <typename Derived>
 std::vector<double> vector_values(const Eigen::MatrixBase<Derived>& v) {
   std::vector<double> out;
   for (Eigen::Index i = 0; i < v.size(); ++i) out.push_back(v(i));
+  return out;
+}
+
+/// What a model (measurement, process or plant model) says of itself in its describe().
+template <typename Model>
+Json description_of(const Model& model) {
+  Json out = Json::object();
+  model.describe(out);
   return out;
 }
 
