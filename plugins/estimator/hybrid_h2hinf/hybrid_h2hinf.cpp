@@ -248,10 +248,7 @@ Status HybridH2HinfEstimator::configure(ConfigureContext& ctx) {
   const std::string output = params.choice("output", {"filtered", "predicted"}, std::string_view("filtered"));
   timing_ = output == "predicted" ? hybrid::OutputTiming::predicted : hybrid::OutputTiming::filtered;
   initialize_from_first_measurement_ = params.flag("initialize_from_first_measurement", true);
-  invalid_measurement_ = params.choice("invalid_measurement", {"fault", "predict"}, std::string_view("fault")) ==
-                                 "predict"
-                             ? hybrid::InvalidMeasurement::predict
-                             : hybrid::InvalidMeasurement::fault;
+  invalid_measurement_ = estimator::read_invalid_measurement(params);
 
   ctx.declare_input(measurement_, "measurement", {}, true);
   measurement_elements_ = estimator::measured_axes(ctx);
@@ -557,9 +554,7 @@ void HybridH2HinfEstimator::describe(Json& out) const {
   out["d"] = d;
   out["output"] = timing_ == hybrid::OutputTiming::predicted ? "predicted (H x^-_{k+1})" : "filtered (H x^+_k, eq. 24)";
   out["initialize_from_first_measurement"] = initialize_from_first_measurement_;
-  out["invalid_measurement"] = invalid_measurement_ == hybrid::InvalidMeasurement::predict
-                                   ? "predict (the axis coasts on the time update)"
-                                   : "fault";
+  out["invalid_measurement"] = estimator::invalid_measurement_text(invalid_measurement_);
   out["period_s"] = period_s_;
   out["phi"] = matrix_json(model_.phi);
   out["upsilon"] = vector_values(model_.upsilon);

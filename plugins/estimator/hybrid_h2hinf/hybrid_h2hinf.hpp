@@ -146,10 +146,10 @@ inline Vector3 blend(double d, const Vector3& kalman_gain, const Vector3& hinf_g
   return d * kalman_gain + (1.0 - d) * hinf_gain;
 }
 
-enum class OutputTiming { filtered, predicted };
-/// What a non-finite measurement does: fault (the default) or predict (that axis coasts on
-/// x^-_{k+1} = Phi x^-_k for the cycle; the step succeeds).
-enum class InvalidMeasurement { fault, predict };
+using estimator::OutputTiming;
+/// A non-finite measurement faults (the default) or makes that axis coast on
+/// x^-_{k+1} = Phi x^-_k for the cycle (predict; the step succeeds).
+using estimator::InvalidMeasurement;
 
 }  // namespace hybrid
 

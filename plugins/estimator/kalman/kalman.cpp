@@ -86,10 +86,7 @@ Status KalmanEstimator::configure(ConfigureContext& ctx) {
   const std::string output = params.choice("output", {"predicted", "filtered"}, std::string_view("predicted"));
   timing_ = output == "filtered" ? kalman::OutputTiming::filtered : kalman::OutputTiming::predicted;
   initialize_from_first_measurement_ = params.flag("initialize_from_first_measurement", true);
-  invalid_measurement_ = params.choice("invalid_measurement", {"fault", "predict"}, std::string_view("fault")) ==
-                                 "predict"
-                             ? kalman::InvalidMeasurement::predict
-                             : kalman::InvalidMeasurement::fault;
+  invalid_measurement_ = estimator::read_invalid_measurement(params);
 
   ctx.declare_input(measurement_, "measurement", {}, true);
   ctx.declare_input(covariance_, "covariance", {}, false);
@@ -326,9 +323,7 @@ void KalmanEstimator::describe(Json& out) const {
   out["motion"] = motion_ == kalman::Motion::constant_acceleration ? "constant_acceleration" : "constant_velocity";
   out["output"] = timing_ == kalman::OutputTiming::predicted ? "predicted (x^-_{k+1})" : "filtered (x^+_k)";
   out["initialize_from_first_measurement"] = initialize_from_first_measurement_;
-  out["invalid_measurement"] = invalid_measurement_ == kalman::InvalidMeasurement::predict
-                                   ? "predict (the axis coasts on the time update)"
-                                   : "fault";
+  out["invalid_measurement"] = estimator::invalid_measurement_text(invalid_measurement_);
   out["period_s"] = period_s_;
   out["measurement_variance"] = r_.empty() ? "covariance input (diagonal of R_k)"
                                            : "covariance input if connected, else r";

@@ -56,12 +56,9 @@ using estimator::kPosition;
 using estimator::kVelocity;
 
 enum class Motion { constant_velocity, constant_acceleration };
-enum class OutputTiming { predicted, filtered };
-/// What a non-finite measurement (or a non-finite or non-positive R(i,i)) does.
-enum class InvalidMeasurement {
-  fault,   ///< the step faults, nothing changes (the default)
-  predict  ///< that axis coasts on the time update for this cycle; the step succeeds
-};
+using estimator::OutputTiming;
+/// A non-finite or non-positive R(i,i) counts as an invalid measurement too.
+using estimator::InvalidMeasurement;
 
 /// Discrete model of one axis with N states (2: constant velocity, 3: constant acceleration):
 /// Phi and Upsilon of eq. 4.39 (or of the constant-velocity model) and the Q_k of eq. 4.41.

@@ -1,11 +1,22 @@
 #include "estimator/linear_axes.hpp"
 
 #include <string>
+#include <string_view>
 
 #include "estimator/element_names.hpp"
 #include "lode/units.hpp"
 
 namespace lode::plugins::estimator {
+
+InvalidMeasurement read_invalid_measurement(Params& params) {
+  return params.choice("invalid_measurement", {"fault", "predict"}, std::string_view("fault")) == "predict"
+             ? InvalidMeasurement::predict
+             : InvalidMeasurement::fault;
+}
+
+const char* invalid_measurement_text(InvalidMeasurement invalid_measurement) noexcept {
+  return invalid_measurement == InvalidMeasurement::predict ? "predict (the axis coasts on the time update)" : "fault";
+}
 
 Elements measured_axes(ConfigureContext& ctx) {
   Params& params = ctx.params();

@@ -35,6 +35,21 @@ inline constexpr int kPosition = 0;
 inline constexpr int kVelocity = 1;
 inline constexpr int kAcceleration = 2;
 
+/// Which estimate the outputs carry: the prior of the next step x^-_{k+1} or the posterior x^+_k.
+enum class OutputTiming { predicted, filtered };
+
+/// What a non-finite measurement does to a per-axis filter.
+enum class InvalidMeasurement {
+  fault,   ///< the step faults, nothing changes (the default)
+  predict  ///< that axis coasts on the time update for this cycle; the step succeeds
+};
+
+/// The `invalid_measurement` parameter: fault (the default) or predict.
+InvalidMeasurement read_invalid_measurement(Params& params);
+
+/// How describe() reports it.
+const char* invalid_measurement_text(InvalidMeasurement invalid_measurement) noexcept;
+
 /// Phi and Upsilon of one axis with N states (2: constant velocity, 3: constant acceleration).
 template <int N>
 struct MotionModel {
