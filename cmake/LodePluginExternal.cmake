@@ -7,7 +7,7 @@
 #                   <prefix>/${LODESTONE_PLUGIN_INSTALL_DIR}, where a `lode` installed in the
 #                   same prefix finds it without LODE_PLUGIN_PATH
 #   <id>_test       with TESTS: one GoogleTest executable (link GTest::gtest_main; the
-#                   BlockHarness is <lode/testing/harness.hpp>), registered with ctest and run
+#                   BlockHarness is <lode/sdk/testing/harness.hpp>), registered with ctest and run
 #                   with this plugin and the SDK's plugins on LODE_PLUGIN_PATH
 function(lode_add_external_plugin)
   cmake_parse_arguments(P "" "NAME" "SOURCES;TESTS;LIBS" ${ARGN})

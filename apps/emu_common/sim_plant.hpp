@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
-#include "lode/block_host.hpp"
-#include "lode/status.hpp"
+#include "lode/sdk/testing/block_host.hpp"
+#include "lode/sdk/status.hpp"
 
 namespace lode::emu {
 

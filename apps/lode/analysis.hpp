@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "lode/json.hpp"
-#include "lode/port.hpp"
+#include "lode/sdk/json.hpp"
+#include "lode/sdk/port.hpp"
 
 namespace lode::analysis {
 

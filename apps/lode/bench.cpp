@@ -5,7 +5,7 @@
 #include "commands.hpp"
 #include "load_config.hpp"
 #include "lode/scheduler.hpp"
-#include "lode/histogram.hpp"
+#include "lode/sdk/histogram.hpp"
 
 namespace lode::cli {
 namespace {

@@ -8,7 +8,7 @@
 #include <iostream>
 #include <memory>
 
-#include "lode/plugin.hpp"
+#include "lode/sdk/plugin.hpp"
 #include "lode/plugin_loader.hpp"
 
 namespace lode::cli {

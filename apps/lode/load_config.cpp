@@ -2,7 +2,7 @@
 
 #include <cstdio>
 
-#include "lode/diagnostics.hpp"
+#include "lode/sdk/diagnostics.hpp"
 
 namespace lode::cli {
 

@@ -29,7 +29,7 @@
 
 #include "local_wire.hpp"
 #include "lode/control.hpp"
-#include "lode/status.hpp"
+#include "lode/sdk/status.hpp"
 
 namespace lode::cli {
 

@@ -8,7 +8,7 @@
 #include <optional>
 #include <string>
 
-#include "lode/status.hpp"
+#include "lode/sdk/status.hpp"
 
 namespace lode::cli::local_socket {
 

@@ -15,7 +15,7 @@
 #include <string>
 
 #include "lode/control.hpp"
-#include "lode/status.hpp"
+#include "lode/sdk/status.hpp"
 
 namespace lode::cli {
 

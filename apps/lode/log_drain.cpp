@@ -6,7 +6,7 @@
 
 #include <chrono>
 
-#include "lode/rt_log.hpp"
+#include "lode/sdk/rt_log.hpp"
 
 namespace lode {
 

@@ -4,7 +4,7 @@
 #include <iostream>
 
 #include "commands.hpp"
-#include "lode/json.hpp"
+#include "lode/sdk/json.hpp"
 #include "lode/plugin_loader.hpp"
 
 namespace lode::cli {

@@ -20,7 +20,7 @@
 #include <vector>
 
 #include "analysis.hpp"
-#include "lode/json.hpp"
+#include "lode/sdk/json.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
 #include "lode/record/hdf5_recorder.hpp"

@@ -6,7 +6,7 @@
 #include <optional>
 #include <set>
 
-#include "lode/math/statistics.hpp"
+#include "lode/sdk/math/statistics.hpp"
 #include "replay.hpp"
 
 namespace lode::cli {

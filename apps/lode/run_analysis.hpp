@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "analysis.hpp"
-#include "lode/json.hpp"
+#include "lode/sdk/json.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/scheduler.hpp"
 

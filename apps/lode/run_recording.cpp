@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "lode/plugin.hpp"
+#include "lode/sdk/plugin.hpp"
 
 namespace lode::cli {
 

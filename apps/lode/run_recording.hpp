@@ -15,7 +15,7 @@
 
 #include "lode/control.hpp"
 #include "lode/event_log.hpp"
-#include "lode/json.hpp"
+#include "lode/sdk/json.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/record/hdf5_recorder.hpp"
 #include "lode/scheduler.hpp"

@@ -3,7 +3,7 @@
 #include <cstdio>
 #include <string>
 
-#include "lode/rt_log.hpp"
+#include "lode/sdk/rt_log.hpp"
 
 namespace lode::cli {
 namespace {

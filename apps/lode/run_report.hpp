@@ -5,7 +5,7 @@
 #include <string>
 
 #include "lode/event_log.hpp"
-#include "lode/json.hpp"
+#include "lode/sdk/json.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/scheduler.hpp"
 #include "run_analysis.hpp"

@@ -15,10 +15,10 @@
 #include "local_control.hpp"
 #include "lode/control.hpp"
 #include "lode/hot_swap.hpp"
-#include "lode/plugin.hpp"
+#include "lode/sdk/plugin.hpp"
 #include "lode/dds/bridge.hpp"
 #include "run_recording.hpp"
-#include "lode/rt_log.hpp"
+#include "lode/sdk/rt_log.hpp"
 #include "lode/telemetry.hpp"
 
 namespace lode::cli {

@@ -13,11 +13,11 @@
 #include <vector>
 
 #include "lode/event_log.hpp"
-#include "lode/json.hpp"
+#include "lode/sdk/json.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/scheduler.hpp"
 #include "lode/dds/bridge.hpp"
-#include "lode/status.hpp"
+#include "lode/sdk/status.hpp"
 
 namespace lode::cli {
 

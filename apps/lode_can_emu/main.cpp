@@ -33,7 +33,7 @@
 
 #include "daq_mapping.hpp"
 #include "emulator.hpp"
-#include "lode/block_host.hpp"
+#include "lode/sdk/testing/block_host.hpp"
 #include "sim_plant.hpp"
 
 namespace {

@@ -30,7 +30,7 @@
 
 #include "emulator.hpp"
 #include "lode/hal/analog.hpp"
-#include "lode/units.hpp"
+#include "lode/sdk/units.hpp"
 #include "regmap.hpp"
 #include "sim_plant.hpp"
 

@@ -1,4 +1,4 @@
-#include "lode/block_host.hpp"
+#include "lode/sdk/testing/block_host.hpp"
 
 #include <yaml-cpp/yaml.h>
 

@@ -1,4 +1,4 @@
-#include "lode/component.hpp"
+#include "lode/sdk/component.hpp"
 
 namespace lode {
 

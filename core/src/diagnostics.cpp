@@ -1,4 +1,4 @@
-#include "lode/diagnostics.hpp"
+#include "lode/sdk/diagnostics.hpp"
 
 #include <algorithm>
 #include <tuple>

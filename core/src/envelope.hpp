@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
-#include "lode/block.hpp"
-#include "lode/port.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/port.hpp"
 
 namespace lode::pipeline_detail {
 

@@ -1,9 +1,9 @@
 // The health monitor of a primary estimator (`health:`): non-finite outputs, the exported
 // covariance's Cholesky factorisation, the windowed NIS against a chi-square threshold and the
 // step time against its budget; a trip hands over to the fallback shadow in the same cycle.
-#include "lode/clock.hpp"
+#include "lode/sdk/clock.hpp"
 #include "lode/config_file.hpp"
-#include "lode/math/statistics.hpp"
+#include "lode/sdk/math/statistics.hpp"
 #include "lode/pipeline.hpp"
 
 #include <arpa/inet.h>
@@ -22,7 +22,7 @@
 #include <sstream>
 
 #include "lode/telemetry.hpp"
-#include "lode/units.hpp"
+#include "lode/sdk/units.hpp"
 #include "params_node.hpp"
 #include "pipeline_impl.hpp"
 #include "port_binder.hpp"
@@ -237,7 +237,7 @@ void Pipeline::Impl::parse_health(const YAML::Node& h) {
     } else if (spec.nis_window > 0 && m > 0) {
       // The window mean of NIS is chi-square with W m degrees of freedom divided by W (white,
       // consistent innovations): the threshold is that distribution's upper quantile at the
-      // false-alarm probability, exact (lode/math/statistics; the Wilson-Hilferty (1931)
+      // false-alarm probability, exact (lode/sdk/math/statistics; the Wilson-Hilferty (1931)
       // approximation used before is 7 % high for W m = 3 at 1e-6).
       const double k = static_cast<double>(spec.nis_window) * static_cast<double>(m);
       spec.nis_threshold = math::chi_square_quantile(1.0 - probability, k) / static_cast<double>(spec.nis_window);

@@ -1,4 +1,4 @@
-#include "lode/histogram.hpp"
+#include "lode/sdk/histogram.hpp"
 
 #include <bit>
 

@@ -1,4 +1,4 @@
-#include "lode/clock.hpp"
+#include "lode/sdk/clock.hpp"
 #include "lode/hot_swap.hpp"
 
 #include <yaml-cpp/yaml.h>
@@ -10,7 +10,7 @@
 #include <ctime>
 #include <thread>
 
-#include "lode/units.hpp"
+#include "lode/sdk/units.hpp"
 #include "params_node.hpp"
 #include "pipeline_impl.hpp"
 #include "port_binder.hpp"

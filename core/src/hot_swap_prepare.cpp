@@ -1,7 +1,7 @@
 // Hot swap, off the RT thread: building the newcomer (plugin, parameters, wiring, the
 // loader's configuration and stand-in checks, storage, the state hand-over map) before the
 // RT thread exchanges it at a cycle boundary.
-#include "lode/clock.hpp"
+#include "lode/sdk/clock.hpp"
 #include "lode/hot_swap.hpp"
 
 #include <yaml-cpp/yaml.h>
@@ -13,7 +13,7 @@
 #include <ctime>
 #include <thread>
 
-#include "lode/units.hpp"
+#include "lode/sdk/units.hpp"
 #include "params_node.hpp"
 #include "pipeline_impl.hpp"
 #include "port_binder.hpp"

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "lode/hot_swap.hpp"
-#include "lode/text.hpp"
+#include "lode/sdk/text.hpp"
 #include "pipeline_impl.hpp"
 
 namespace lode {

@@ -1,4 +1,4 @@
-#include "lode/json.hpp"
+#include "lode/sdk/json.hpp"
 
 #include <cmath>
 #include <cstdio>

@@ -1,4 +1,4 @@
-#include "lode/params.hpp"
+#include "lode/sdk/params.hpp"
 
 #include <algorithm>
 #include <cmath>

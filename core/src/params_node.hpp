@@ -8,8 +8,8 @@
 #include <string>
 #include <vector>
 
-#include "lode/diagnostics.hpp"
-#include "lode/params.hpp"
+#include "lode/sdk/diagnostics.hpp"
+#include "lode/sdk/params.hpp"
 
 namespace lode::detail {
 

@@ -1,6 +1,6 @@
 // Roles and instances: shadows of a primary, families, the bindings of an instance into a
 // role, and the exchanges hot swap, promotion and a health fallback make at a cycle boundary.
-#include "lode/clock.hpp"
+#include "lode/sdk/clock.hpp"
 #include "lode/config_file.hpp"
 #include "lode/pipeline.hpp"
 
@@ -20,7 +20,7 @@
 #include <sstream>
 
 #include "lode/telemetry.hpp"
-#include "lode/units.hpp"
+#include "lode/sdk/units.hpp"
 #include "params_node.hpp"
 #include "pipeline_impl.hpp"
 #include "port_binder.hpp"

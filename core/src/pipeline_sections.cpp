@@ -15,7 +15,7 @@
 
 #include "lode/pipeline.hpp"
 #include "lode/telemetry.hpp"
-#include "lode/units.hpp"
+#include "lode/sdk/units.hpp"
 #include "params_node.hpp"
 #include "pipeline_impl.hpp"
 

@@ -1,7 +1,7 @@
 // Internal: binds declared ports to arena storage (the only writer of their pointers).
 #pragma once
 
-#include "lode/port.hpp"
+#include "lode/sdk/port.hpp"
 
 namespace lode {
 

@@ -1,4 +1,4 @@
-#include "lode/rt_log.hpp"
+#include "lode/sdk/rt_log.hpp"
 
 namespace lode {
 

@@ -11,7 +11,7 @@
 
 #include "lode/crash_guard.hpp"
 #include "lode/realtime.hpp"
-#include "lode/rt_log.hpp"
+#include "lode/sdk/rt_log.hpp"
 
 namespace lode {
 

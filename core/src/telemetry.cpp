@@ -1,4 +1,4 @@
-#include "lode/clock.hpp"
+#include "lode/sdk/clock.hpp"
 #include "lode/telemetry.hpp"
 
 #include <time.h>

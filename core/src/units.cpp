@@ -1,10 +1,10 @@
-#include "lode/units.hpp"
+#include "lode/sdk/units.hpp"
 
 #include <algorithm>
 #include <cctype>
 
-#include "lode/port.hpp"
-#include "lode/plugin.hpp"
+#include "lode/sdk/port.hpp"
+#include "lode/sdk/plugin.hpp"
 
 namespace lode {
 

@@ -9,7 +9,7 @@
 #include <thread>
 
 #include "lode/hal/can_frame.hpp"
-#include "lode/clock.hpp"
+#include "lode/sdk/clock.hpp"
 #include "lode/hal/can_socket.hpp"
 #include "lode/hal/canopen.hpp"
 

@@ -9,12 +9,12 @@
 #include <random>
 #include <thread>
 
-#include "lode/histogram.hpp"
-#include "lode/json.hpp"
-#include "lode/params.hpp"
-#include "lode/rt_log.hpp"
+#include "lode/sdk/histogram.hpp"
+#include "lode/sdk/json.hpp"
+#include "lode/sdk/params.hpp"
+#include "lode/sdk/rt_log.hpp"
 #include "lode/scheduler.hpp"
-#include "lode/units.hpp"
+#include "lode/sdk/units.hpp"
 #include "../../core/src/params_node.hpp"
 
 namespace {

@@ -12,7 +12,7 @@
 #include <random>
 #include <vector>
 
-#include "lode/math/discretize.hpp"
+#include "lode/sdk/math/discretize.hpp"
 
 namespace {
 

@@ -10,9 +10,9 @@
 #include <string>
 #include <vector>
 
-#include "lode/json.hpp"
-#include "lode/math/riccati.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/json.hpp"
+#include "lode/sdk/math/riccati.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 // SLICOT SB02OD (Fortran 77; gfortran passes the CHARACTER lengths last, as size_t).
 extern "C" void sb02od_(const char* dico, const char* jobb, const char* fact, const char* uplo, const char* jobl,

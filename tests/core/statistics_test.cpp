@@ -5,7 +5,7 @@
 
 #include <cmath>
 
-#include "lode/math/statistics.hpp"
+#include "lode/sdk/math/statistics.hpp"
 
 namespace {
 

@@ -40,7 +40,7 @@
 #include <fastdds/dds/subscriber/qos/DataReaderQos.hpp>
 #include <fastdds/dds/topic/Topic.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
-#include "lode/testing/require.hpp"
+#include "lode/sdk/testing/require.hpp"
 
 #include "lode/dds/participant.hpp"
 #include "lode/testing/private_domain.hpp"

@@ -1,6 +1,6 @@
 // filter.external_gain: out = gain * input, element names and units passed through.
-#include <lode/block.hpp>
-#include <lode/plugin.hpp>
+#include <lode/sdk/block.hpp>
+#include <lode/sdk/plugin.hpp>
 
 namespace {
 
@@ -27,9 +27,9 @@ class ExternalGain final : public lode::Block {
 };
 
 const lode::ParamDoc kParams[] = {{"gain", "number", nullptr, "multiplier"}};
-const lode::PortDoc kPorts[] = {{"input", "in", "any vector"}, {"out", "out", "gain * input"}};
+const lode::PortSpec kPorts[] = {{"input", lode::PortDirection::in, "any vector"}, {"out", lode::PortDirection::out, "gain * input"}};
 
 }  // namespace
 
-LODE_PLUGIN(ExternalGain, "filter.external_gain", lode::PluginKind::block, "1.0.0",
+LODE_PLUGIN(ExternalGain, "filter.external_gain", lode::PluginKind::filter, "1.0.0",
             "Out-of-tree example: multiplies its input by a gain", kParams, kPorts)

@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "cycle_allocations.hpp"
-#include "lode/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
 
 namespace {
 

@@ -10,7 +10,7 @@
 
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
-#include "lode/testing/scratch_dir.hpp"
+#include "lode/sdk/testing/scratch_dir.hpp"
 
 namespace {
 

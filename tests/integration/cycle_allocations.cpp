@@ -9,7 +9,7 @@
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
 #include "lode/scheduler.hpp"
-#include "lode/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
 #include "lode/testing/private_domain.hpp"
 #include "run_services.hpp"
 

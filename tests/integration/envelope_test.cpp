@@ -21,8 +21,8 @@
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
 #include "lode/scheduler.hpp"
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/require.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/require.hpp"
 #include "config_text.hpp"
 
 namespace {

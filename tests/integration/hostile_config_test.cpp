@@ -15,8 +15,8 @@
 #include <functional>
 #include <string>
 
-#include "lode/testing/require.hpp"
-#include "lode/testing/scratch_dir.hpp"
+#include "lode/sdk/testing/require.hpp"
+#include "lode/sdk/testing/scratch_dir.hpp"
 
 namespace {
 

@@ -37,7 +37,7 @@
 #include "lode/hot_swap.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
-#include "lode/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
 #include "config_text.hpp"
 
 namespace {

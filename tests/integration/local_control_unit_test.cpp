@@ -20,7 +20,7 @@
 
 #include "local_control.hpp"
 #include "lode/control.hpp"
-#include "lode/diagnostics.hpp"
+#include "lode/sdk/diagnostics.hpp"
 #include "lode/event_log.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"

@@ -16,7 +16,7 @@
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
 #include "lode/telemetry.hpp"
-#include "lode/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
 #include "config_text.hpp"
 
 namespace {

@@ -32,7 +32,7 @@
 #include <string>
 #include <vector>
 
-#include "lode/math/discretize.hpp"
+#include "lode/sdk/math/discretize.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
 #include "lode/scheduler.hpp"

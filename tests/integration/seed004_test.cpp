@@ -32,11 +32,11 @@
 #include <string>
 #include <vector>
 
-#include "lode/json.hpp"
+#include "lode/sdk/json.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
-#include "lode/testing/harness.hpp"
-#include "lode/testing/require.hpp"
+#include "lode/sdk/testing/harness.hpp"
+#include "lode/sdk/testing/require.hpp"
 
 namespace {
 

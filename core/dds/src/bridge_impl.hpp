@@ -32,7 +32,7 @@
 
 #include "command_request.hpp"
 #include "common.hpp"
-#include "lode/rt_log.hpp"
+#include "lode/sdk/rt_log.hpp"
 #include "lode_msgs.h"
 
 namespace lode::dds::bridge_detail {

@@ -14,7 +14,7 @@
 // left in a reply writer's history by an earlier client of the same name never matches;
 // the reply handed back carries the caller's request.id.
 #include "lode/dds/client.hpp"
-#include "lode/clock.hpp"
+#include "lode/sdk/clock.hpp"
 
 #include <time.h>
 #include <unistd.h>

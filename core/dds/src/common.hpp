@@ -12,7 +12,7 @@
 #include <fastdds/dds/subscriber/qos/DataReaderQos.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
 
-#include "lode/status.hpp"
+#include "lode/sdk/status.hpp"
 #include "lode_msgsPubSubTypes.h"
 
 namespace lode::dds::detail {

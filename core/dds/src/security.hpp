@@ -3,7 +3,7 @@
 // from the YAML `telemetry.security` section. tools/dds-security/ makes a lab PKI for it.
 #pragma once
 
-#include "lode/status.hpp"
+#include "lode/sdk/status.hpp"
 #include "lode/telemetry.hpp"
 
 namespace eprosima::fastdds::dds {

@@ -28,12 +28,12 @@
 #include <string_view>
 #include <vector>
 
-#include "lode/component.hpp"
-#include "lode/json.hpp"
-#include "lode/model.hpp"
-#include "lode/params.hpp"
-#include "lode/port.hpp"
-#include "lode/status.hpp"
+#include "lode/sdk/component.hpp"
+#include "lode/sdk/json.hpp"
+#include "lode/sdk/model.hpp"
+#include "lode/sdk/params.hpp"
+#include "lode/sdk/port.hpp"
+#include "lode/sdk/status.hpp"
 
 namespace lode {
 

@@ -22,7 +22,7 @@
 #include <string>
 #include <vector>
 
-#include "lode/block.hpp"
+#include "lode/sdk/block.hpp"
 
 namespace lode {
 

@@ -10,7 +10,7 @@
 #include <optional>
 #include <string>
 
-#include "lode/diagnostics.hpp"
+#include "lode/sdk/diagnostics.hpp"
 
 namespace lode {
 

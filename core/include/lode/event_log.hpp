@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "lode/json.hpp"
+#include "lode/sdk/json.hpp"
 
 namespace lode {
 

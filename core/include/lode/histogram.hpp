@@ -9,7 +9,7 @@
 #include <atomic>
 #include <cstdint>
 
-#include "lode/json.hpp"
+#include "lode/sdk/json.hpp"
 
 namespace lode {
 

@@ -33,9 +33,9 @@
 
 #include "lode/control.hpp"
 #include "lode/event_log.hpp"
-#include "lode/histogram.hpp"
+#include "lode/sdk/histogram.hpp"
 #include "lode/pipeline.hpp"
-#include "lode/status.hpp"
+#include "lode/sdk/status.hpp"
 #include "lode/telemetry.hpp"
 
 namespace lode {

@@ -6,11 +6,11 @@
 // estimator. All evaluation methods are RT-safe: no allocation, no throw.
 #pragma once
 
-#include "lode/component.hpp"
-#include "lode/json.hpp"
-#include "lode/params.hpp"
-#include "lode/port.hpp"
-#include "lode/status.hpp"
+#include "lode/sdk/component.hpp"
+#include "lode/sdk/json.hpp"
+#include "lode/sdk/params.hpp"
+#include "lode/sdk/port.hpp"
+#include "lode/sdk/status.hpp"
 
 namespace lode {
 

@@ -18,7 +18,7 @@
 #include <string_view>
 #include <vector>
 
-#include "lode/diagnostics.hpp"
+#include "lode/sdk/diagnostics.hpp"
 
 namespace lode {
 

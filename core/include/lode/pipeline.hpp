@@ -12,10 +12,10 @@
 #include <string>
 #include <vector>
 
-#include "lode/block.hpp"
-#include "lode/diagnostics.hpp"
-#include "lode/histogram.hpp"
-#include "lode/json.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/diagnostics.hpp"
+#include "lode/sdk/histogram.hpp"
+#include "lode/sdk/json.hpp"
 #include "lode/plugin_loader.hpp"
 
 namespace lode {

@@ -13,7 +13,7 @@
 #include <cstdint>
 #include <iterator>
 
-#include "lode/component.hpp"
+#include "lode/sdk/component.hpp"
 
 namespace lode {
 

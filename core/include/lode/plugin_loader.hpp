@@ -13,8 +13,8 @@
 #include <string>
 #include <vector>
 
-#include "lode/plugin.hpp"
-#include "lode/status.hpp"
+#include "lode/sdk/plugin.hpp"
+#include "lode/sdk/status.hpp"
 
 namespace lode {
 

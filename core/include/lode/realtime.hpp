@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "lode/json.hpp"
+#include "lode/sdk/json.hpp"
 #include "lode/pipeline.hpp"
 
 namespace lode {

@@ -18,7 +18,7 @@
 #include <vector>
 
 #include "lode/event_log.hpp"
-#include "lode/histogram.hpp"
+#include "lode/sdk/histogram.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/telemetry.hpp"
 #include "lode/sample_ring.hpp"

@@ -1,6 +1,6 @@
 // Continuous-to-discrete conversions (configure time): matrix exponential, zero-order hold,
 // Van Loan's process-noise integral, Tustin with prewarp, matched pole-zero.
-#include "lode/math/discretize.hpp"
+#include "lode/sdk/math/discretize.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>

@@ -35,8 +35,8 @@
 #include <limits>
 #include <string>
 
-#include "lode/math/riccati.hpp"
-#include "lode/text.hpp"
+#include "lode/sdk/math/riccati.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::math {
 

@@ -1,4 +1,4 @@
-#include "lode/math/statistics.hpp"
+#include "lode/sdk/math/statistics.hpp"
 
 #include <algorithm>
 #include <cmath>

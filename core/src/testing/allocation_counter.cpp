@@ -1,4 +1,4 @@
-#include "lode/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
 
 #include <atomic>
 #include <cerrno>

@@ -1,4 +1,4 @@
-#include "lode/testing/require.hpp"
+#include "lode/sdk/testing/require.hpp"
 
 #include <cstdlib>
 #include <filesystem>

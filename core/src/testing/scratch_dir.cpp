@@ -1,4 +1,4 @@
-#include "lode/testing/scratch_dir.hpp"
+#include "lode/sdk/testing/scratch_dir.hpp"
 
 #include <sys/stat.h>
 #include <unistd.h>

@@ -8,9 +8,9 @@
 #include <set>
 #include <string>
 
-#include "lode/plugin.hpp"
-#include "lode/units.hpp"
-#include "lode/text.hpp"
+#include "lode/sdk/plugin.hpp"
+#include "lode/sdk/units.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins {
 
@@ -439,16 +439,16 @@ constexpr ParamDoc kParams[] = {
      "per-axis |u| clamp [output unit]; while clamped the state is not updated towards saturation"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"measurement", "in", "n measured values, one per axis (e.g. kf.pose)"},
-    {"reference", "in", "optional n references in the measurement's units; 0 when not connected"},
-    {"out", "out", "n controller outputs u = D(z)(reference - measurement), in output_units"},
+constexpr PortSpec kPorts[] = {
+    {"measurement", PortDirection::in, "n measured values, one per axis (e.g. kf.pose)"},
+    {"reference", PortDirection::in, "optional n references in the measurement's units; 0 when not connected"},
+    {"out", PortDirection::out, "n controller outputs u = D(z)(reference - measurement), in output_units"},
 };
 
 }  // namespace
 
 }  // namespace lode::plugins
 
-LODE_PLUGIN(lode::plugins::DiscreteTfController, "controller.discrete_tf", lode::PluginKind::block, "0.1.0",
+LODE_PLUGIN(lode::plugins::DiscreteTfController, "controller.discrete_tf", lode::PluginKind::controller, "0.1.0",
             "Per-axis SISO discrete transfer functions (matched pole-zero, Tustin or given D(z)) with clamp",
             lode::plugins::kParams, lode::plugins::kPorts)

@@ -36,8 +36,8 @@
 #include <string>
 #include <vector>
 
-#include "lode/block.hpp"
-#include "lode/math/discretize.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/math/discretize.hpp"
 
 namespace lode::plugins {
 

@@ -9,10 +9,10 @@
 #include <set>
 #include <string>
 
-#include "lode/math/discretize.hpp"
-#include "lode/plugin.hpp"
-#include "lode/units.hpp"
-#include "lode/text.hpp"
+#include "lode/sdk/math/discretize.hpp"
+#include "lode/sdk/plugin.hpp"
+#include "lode/sdk/units.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins {
 
@@ -555,18 +555,18 @@ constexpr ParamDoc kParams[] = {
      "hold a mode's integrators while their increment pushes a clamped output further into output_limit"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"measurement", "in", "n measured positions (names select each mode's positions), e.g. notch.out"},
-    {"velocity", "in", "optional n velocities [<unit>/s] (e.g. kf.velocity); else backward difference"},
-    {"reference", "in", "optional n references in the measurement's units; 0 when not connected"},
-    {"command", "out", "every mode's outputs u = u* - K xi, in output_units"},
-    {"integral", "out", "the integrator states z, int_<name> [<unit>*s]"},
+constexpr PortSpec kPorts[] = {
+    {"measurement", PortDirection::in, "n measured positions (names select each mode's positions), e.g. notch.out"},
+    {"velocity", PortDirection::in, "optional n velocities [<unit>/s] (e.g. kf.velocity); else backward difference"},
+    {"reference", PortDirection::in, "optional n references in the measurement's units; 0 when not connected"},
+    {"command", PortDirection::out, "every mode's outputs u = u* - K xi, in output_units"},
+    {"integral", PortDirection::out, "the integrator states z, int_<name> [<unit>*s]"},
 };
 
 }  // namespace
 
 }  // namespace lode::plugins
 
-LODE_PLUGIN(lode::plugins::LqIntegralController, "controller.lq_integral", lode::PluginKind::block, "0.1.0",
+LODE_PLUGIN(lode::plugins::LqIntegralController, "controller.lq_integral", lode::PluginKind::controller, "0.1.0",
             "Integrator-augmented discrete LQ per mode, [position, integral, velocity] state (Silva-Rivas & Kim 2013)",
             lode::plugins::kParams, lode::plugins::kPorts)

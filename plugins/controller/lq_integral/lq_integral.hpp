@@ -40,8 +40,8 @@
 #include <string>
 #include <vector>
 
-#include "lode/block.hpp"
-#include "lode/math/riccati.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/math/riccati.hpp"
 
 namespace lode::plugins {
 

@@ -7,8 +7,8 @@
 #include <limits>
 #include <string>
 
-#include "lode/plugin.hpp"
-#include "lode/units.hpp"
+#include "lode/sdk/plugin.hpp"
+#include "lode/sdk/units.hpp"
 
 namespace lode::plugins {
 
@@ -502,16 +502,16 @@ constexpr ParamDoc kParams[] = {
     {"output_units", "list<text>", "1", "output units, one or one per axis (e.g. [V])"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"measurement", "in", "the controlled elements by name (e.g. ukf.state: gap [m])"},
-    {"reference", "in", "optional setpoints, same names/units (0 when unconnected)"},
-    {"out", "out", "clamped command, output_names [output_units]"},
+constexpr PortSpec kPorts[] = {
+    {"measurement", PortDirection::in, "the controlled elements by name (e.g. ukf.state: gap [m])"},
+    {"reference", PortDirection::in, "optional setpoints, same names/units (0 when unconnected)"},
+    {"out", PortDirection::out, "clamped command, output_names [output_units]"},
 };
 
 }  // namespace
 
 }  // namespace lode::plugins
 
-LODE_PLUGIN(lode::plugins::PidController, "controller.pid", lode::PluginKind::block, "0.1.0",
+LODE_PLUGIN(lode::plugins::PidController, "controller.pid", lode::PluginKind::controller, "0.1.0",
             "Discrete PID, recursive form of Sensors 2016 eq. 35, output clamp with anti-windup, 2-DOF weights",
             lode::plugins::kParams, lode::plugins::kPorts)

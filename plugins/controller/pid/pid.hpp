@@ -43,7 +43,8 @@
 #include <string>
 #include <vector>
 
-#include "lode/block.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/tunables.hpp"
 
 namespace lode::plugins {
 
@@ -78,7 +79,7 @@ std::vector<std::array<double, 2>> quadratic_roots(double c0, double c1, double 
 
 }  // namespace pid
 
-class PidController final : public Block {
+class PidController final : public Block, public Tunables {
  public:
   Status configure(ConfigureContext& ctx) override;
   Status activate() override;

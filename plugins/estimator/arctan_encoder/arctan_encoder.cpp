@@ -4,8 +4,8 @@
 #include <numbers>
 #include <string>
 
-#include "lode/plugin.hpp"
-#include "lode/text.hpp"
+#include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins {
 
@@ -146,17 +146,17 @@ constexpr ParamDoc kParams[] = {
      "homing reference: the first sample's cycle count puts the position nearest this value [m]"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"signals", "in", "sin [V], cos [V] encoder channels (e.g. io.sim signals)"},
-    {"estimate", "out", "x [m] absolute position (cycle count + fine angle), v [m/s] backward difference"},
-    {"cycle_count", "out", "count [1]: the coarse period counter"},
+constexpr PortSpec kPorts[] = {
+    {"signals", PortDirection::in, "sin [V], cos [V] encoder channels (e.g. io.sim signals)"},
+    {"estimate", PortDirection::out, "x [m] absolute position (cycle count + fine angle), v [m/s] backward difference"},
+    {"cycle_count", PortDirection::out, "count [1]: the coarse period counter"},
 };
 
 }  // namespace
 
 }  // namespace lode::plugins
 
-LODE_PLUGIN(lode::plugins::ArctanEncoder, "estimator.arctan_encoder", lode::PluginKind::block, "0.1.0",
+LODE_PLUGIN(lode::plugins::ArctanEncoder, "estimator.arctan_encoder", lode::PluginKind::estimator, "0.1.0",
             "Baseline sin/cos decoder: atan2 or arcsin/arccos + cycle counter, backward-difference velocity "
             "(Zimmerman 2006 eq. 2-3)",
             lode::plugins::kParams, lode::plugins::kPorts)

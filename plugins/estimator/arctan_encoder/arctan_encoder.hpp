@@ -32,7 +32,7 @@
 
 #include <cstdint>
 
-#include "lode/block.hpp"
+#include "lode/sdk/block.hpp"
 
 namespace lode::plugins {
 

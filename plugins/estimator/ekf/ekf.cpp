@@ -4,7 +4,7 @@
 #include <array>
 #include <string>
 
-#include "lode/plugin.hpp"
+#include "lode/sdk/plugin.hpp"
 
 namespace lode::plugins {
 
@@ -93,12 +93,12 @@ constexpr ParamDoc kParams[] = {
      "auto (the model's analytic F if it has one, else central differences), analytic (required), numerical"},
 };
 
-constexpr PortDoc kPorts[] = {LODE_MODEL_ESTIMATOR_PORT_DOCS};
+constexpr PortSpec kPorts[] = {LODE_MODEL_ESTIMATOR_PORT_DOCS};
 
 }  // namespace
 
 }  // namespace lode::plugins
 
-LODE_PLUGIN(lode::plugins::ExtendedEstimator, "estimator.ekf", lode::PluginKind::block, "0.1.0",
+LODE_PLUGIN(lode::plugins::ExtendedEstimator, "estimator.ekf", lode::PluginKind::estimator, "0.1.0",
             "Extended Kalman filter over plugin process and measurement models (analytic or numerical F)",
             lode::plugins::kParams, lode::plugins::kPorts)

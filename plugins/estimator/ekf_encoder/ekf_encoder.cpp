@@ -8,9 +8,9 @@
 #include <string>
 
 #include "estimator/describe_json.hpp"
-#include "lode/plugin.hpp"
-#include "lode/text.hpp"
-#include "lode/units.hpp"
+#include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
+#include "lode/sdk/units.hpp"
 
 namespace lode::plugins {
 
@@ -447,20 +447,20 @@ constexpr ParamDoc kParams[] = {
      "x(0) when the `initial` input is not connected [m]; also where describe() evaluates the steady state"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"signals", "in", "the model's channels [V] (e.g. io.sim signals: sin, cos)"},
-    {"initial", "in", "optional: element 0 is the coarse position [m] used at the first sample (e.g. arctan.estimate)"},
-    {"estimate", "out", "x [m], v [m/s]: a-posteriori x(k|k)"},
-    {"acceleration", "out", "a [m/s^2]"},
-    {"std", "out", "x_std [m], v_std [m/s], a_std [m/s^2]: sqrt(diag P(k|k))"},
-    {"innovation", "out", "z - h(x(k|k-1)) per channel [V]"},
+constexpr PortSpec kPorts[] = {
+    {"signals", PortDirection::in, "the model's channels [V] (e.g. io.sim signals: sin, cos)"},
+    {"initial", PortDirection::in, "optional: element 0 is the coarse position [m] used at the first sample (e.g. arctan.estimate)"},
+    {"estimate", PortDirection::out, "x [m], v [m/s]: a-posteriori x(k|k)"},
+    {"acceleration", PortDirection::out, "a [m/s^2]"},
+    {"std", PortDirection::out, "x_std [m], v_std [m/s], a_std [m/s^2]: sqrt(diag P(k|k))"},
+    {"innovation", PortDirection::out, "z - h(x(k|k-1)) per channel [V]"},
 };
 
 }  // namespace
 
 }  // namespace lode::plugins
 
-LODE_PLUGIN(lode::plugins::EkfEncoder, "estimator.ekf_encoder", lode::PluginKind::block, "0.1.0",
+LODE_PLUGIN(lode::plugins::EkfEncoder, "estimator.ekf_encoder", lode::PluginKind::estimator, "0.1.0",
             "3-state Singer-model EKF decoding sin/cos encoder signals into absolute position, velocity and "
             "acceleration (Zimmerman 2006 eq. 6-16)",
             lode::plugins::kParams, lode::plugins::kPorts)

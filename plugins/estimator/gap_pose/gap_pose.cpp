@@ -9,9 +9,9 @@
 
 #include "estimator/describe_json.hpp"
 #include "estimator/weighted_least_squares.hpp"
-#include "lode/plugin.hpp"
-#include "lode/text.hpp"
-#include "lode/units.hpp"
+#include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
+#include "lode/sdk/units.hpp"
 
 namespace lode::plugins {
 
@@ -171,17 +171,17 @@ constexpr ParamDoc kParams[] = {
     {"initial", "list<number>[6]", "[0, 0, 0, 0, 0, 0]", "pose the first tick starts from [m, rad]"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"measurement", "in", "the model's channels [V], in order (e.g. board.signals)"},
-    {"pose", "out", "x, y, z [m], phi, theta, psi [rad]"},
-    {"cost", "out", "weighted squared residual |y - h(P)|_W^2 [1]"},
+constexpr PortSpec kPorts[] = {
+    {"measurement", PortDirection::in, "the model's channels [V], in order (e.g. board.signals)"},
+    {"pose", PortDirection::out, "x, y, z [m], phi, theta, psi [rad]"},
+    {"cost", PortDirection::out, "weighted squared residual |y - h(P)|_W^2 [1]"},
 };
 
 }  // namespace
 
 }  // namespace lode::plugins
 
-LODE_PLUGIN(lode::plugins::GapPose, "estimator.gap_pose", lode::PluginKind::block, "0.1.0",
+LODE_PLUGIN(lode::plugins::GapPose, "estimator.gap_pose", lode::PluginKind::estimator, "0.1.0",
             "6-DOF pose from gap-probe voltages by Gauss-Newton through a measurement model (Gutierrez & Li "
             "2024 forward kinematics)",
             lode::plugins::kParams, lode::plugins::kPorts)

@@ -10,9 +10,9 @@
 
 #include "estimator/describe_json.hpp"
 #include "estimator/weighted_least_squares.hpp"
-#include "lode/plugin.hpp"
-#include "lode/rt_log.hpp"
-#include "lode/text.hpp"
+#include "lode/sdk/plugin.hpp"
+#include "lode/sdk/rt_log.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins {
 
@@ -298,19 +298,19 @@ constexpr ParamDoc kParams[] = {
      "and cost outputs are NaN, the warm-start pose is kept for the next cycle and the step succeeds"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"measurement", "in", "the model's channels [V], e.g. a1, b1, c1, d2"},
-    {"theta", "in", "2dof only, optional: theta_z [rad] (e.g. from a laser)"},
-    {"pose", "out", "x [m], y [m], theta_z [rad]"},
-    {"covariance", "out",
+constexpr PortSpec kPorts[] = {
+    {"measurement", PortDirection::in, "the model's channels [V], e.g. a1, b1, c1, d2"},
+    {"theta", PortDirection::in, "2dof only, optional: theta_z [rad] (e.g. from a laser)"},
+    {"pose", PortDirection::out, "x [m], y [m], theta_z [rad]"},
+    {"covariance", PortDirection::out,
      "R = (H'WH)^-1 row-major (xx, xy, xth, yx, yy, yth, thx, thy, thth) [m^2, m*rad, rad^2]"},
-    {"cost", "out", "weighted cost J = (y - h(z))' W (y - h(z)) at the published estimate [1]"},
+    {"cost", PortDirection::out, "weighted cost J = (y - h(z))' W (y - h(z)) at the published estimate [1]"},
 };
 
 }  // namespace
 
 }  // namespace lode::plugins
 
-LODE_PLUGIN(lode::plugins::Glsdc, "estimator.glsdc", lode::PluginKind::block, "0.1.0",
+LODE_PLUGIN(lode::plugins::Glsdc, "estimator.glsdc", lode::PluginKind::estimator, "0.1.0",
             "Gauss-Newton (GLSDC) planar pose from Hall voltages (Kawato §4.3, eq. 4.27-4.30)",
             lode::plugins::kParams, lode::plugins::kPorts)

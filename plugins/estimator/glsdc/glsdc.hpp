@@ -33,11 +33,12 @@
 #include <string>
 #include <vector>
 
-#include "lode/block.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/estimator_state.hpp"
 
 namespace lode::plugins {
 
-class Glsdc final : public Block {
+class Glsdc final : public Block, public EstimatorState {
  public:
   static constexpr int kMaxChannels = 16;
   static constexpr int kStates = 3;

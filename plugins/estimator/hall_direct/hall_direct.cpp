@@ -5,8 +5,8 @@
 #include <string>
 #include <vector>
 
-#include "lode/plugin.hpp"
-#include "lode/units.hpp"
+#include "lode/sdk/plugin.hpp"
+#include "lode/sdk/units.hpp"
 
 namespace lode::plugins {
 
@@ -121,17 +121,17 @@ constexpr ParamDoc kParams[] = {
     {"compensated_range_v", "list<number>[2]", "[0, 0.8]", "C_H clamp [V]; M_H must decrease strictly on it"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"signals", "in", "the Hall voltage [V], element `channel` (e.g. io.sim signals)"},
-    {"coil_voltage", "in", "optional: coil_voltage [V] held at the sample (e.g. io.sim truth)"},
-    {"gap", "out", "d_hall [m] (eq. 14)"},
-    {"compensated", "out", "C_H [V] (eq. 15), before the clamp"},
+constexpr PortSpec kPorts[] = {
+    {"signals", PortDirection::in, "the Hall voltage [V], element `channel` (e.g. io.sim signals)"},
+    {"coil_voltage", PortDirection::in, "optional: coil_voltage [V] held at the sample (e.g. io.sim truth)"},
+    {"gap", PortDirection::out, "d_hall [m] (eq. 14)"},
+    {"compensated", PortDirection::out, "C_H [V] (eq. 15), before the clamp"},
 };
 
 }  // namespace
 
 }  // namespace lode::plugins
 
-LODE_PLUGIN(lode::plugins::HallDirect, "estimator.hall_direct", lode::PluginKind::block, "0.1.0",
+LODE_PLUGIN(lode::plugins::HallDirect, "estimator.hall_direct", lode::PluginKind::estimator, "0.1.0",
             "Direct Hall distance of Sensors 2016 (eq. 14-16, coil-compensated static characteristic), the baseline",
             lode::plugins::kParams, lode::plugins::kPorts)

@@ -28,7 +28,7 @@
 #include <string>
 
 #include "../../sensor/hall_gap/hall_polynomial.hpp"
-#include "lode/block.hpp"
+#include "lode/sdk/block.hpp"
 
 namespace lode::plugins {
 

@@ -13,10 +13,10 @@
 
 #include "estimator/describe_json.hpp"
 #include "estimator/per_axis.hpp"
-#include "lode/math/riccati.hpp"
-#include "lode/plugin.hpp"
-#include "lode/units.hpp"
-#include "lode/text.hpp"
+#include "lode/sdk/math/riccati.hpp"
+#include "lode/sdk/plugin.hpp"
+#include "lode/sdk/units.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins {
 
@@ -658,19 +658,19 @@ constexpr ParamDoc kParams[] = {
      "outputs stay finite"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"measurement", "in", "n <= 6 measured positions, any names and units (e.g. x, y, theta_z, z, theta_x, theta_y)"},
-    {"pose", "out", "estimated positions, same names and units as the measurement"},
-    {"velocity", "out", "<name>_dot [<unit>/s]"},
-    {"acceleration", "out", "<name>_ddot [<unit>/s^2]"},
-    {"innovation", "out", "y_k - H x^-_k, same names and units as the measurement"},
+constexpr PortSpec kPorts[] = {
+    {"measurement", PortDirection::in, "n <= 6 measured positions, any names and units (e.g. x, y, theta_z, z, theta_x, theta_y)"},
+    {"pose", PortDirection::out, "estimated positions, same names and units as the measurement"},
+    {"velocity", PortDirection::out, "<name>_dot [<unit>/s]"},
+    {"acceleration", PortDirection::out, "<name>_ddot [<unit>/s^2]"},
+    {"innovation", PortDirection::out, "y_k - H x^-_k, same names and units as the measurement"},
 };
 
 }  // namespace
 
 }  // namespace lode::plugins
 
-LODE_PLUGIN(lode::plugins::HybridH2HinfEstimator, "estimator.hybrid_h2hinf", lode::PluginKind::block, "0.1.0",
+LODE_PLUGIN(lode::plugins::HybridH2HinfEstimator, "estimator.hybrid_h2hinf", lode::PluginKind::estimator, "0.1.0",
             "Per-axis constant-acceleration filter with a run-time blend of Kalman and H-infinity gains "
             "(Silva-Rivas & Kim 2013, eqs. 20-25)",
             lode::plugins::kParams, lode::plugins::kPorts)

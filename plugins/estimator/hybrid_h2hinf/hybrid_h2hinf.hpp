@@ -52,7 +52,9 @@
 #include <vector>
 
 #include "estimator/linear_axes.hpp"
-#include "lode/block.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/estimator_state.hpp"
+#include "lode/sdk/tunables.hpp"
 
 namespace lode::plugins {
 
@@ -153,7 +155,7 @@ using estimator::InvalidMeasurement;
 
 }  // namespace hybrid
 
-class HybridH2HinfEstimator final : public Block {
+class HybridH2HinfEstimator final : public Block, public Tunables, public EstimatorState {
  public:
   Status configure(ConfigureContext& ctx) override;
   Status activate() override;

@@ -10,9 +10,9 @@
 #include "estimator/describe_json.hpp"
 #include "estimator/per_axis.hpp"
 #include "estimator/usable_covariance.hpp"
-#include "lode/plugin.hpp"
-#include "lode/units.hpp"
-#include "lode/text.hpp"
+#include "lode/sdk/plugin.hpp"
+#include "lode/sdk/units.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins {
 
@@ -356,19 +356,19 @@ constexpr ParamDoc kParams[] = {
      "update for that cycle and the outputs stay finite"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"measurement", "in", "n <= 6 measured positions, any names and units (e.g. glsdc.pose)"},
-    {"covariance", "in", "optional n*n row-major R_k (eq. 4.28); the diagonal is used per axis"},
-    {"pose", "out", "estimated positions, same names and units as the measurement"},
-    {"velocity", "out", "<name>_dot [<unit>/s]"},
-    {"acceleration", "out", "<name>_ddot [<unit>/s^2], constant_acceleration only"},
-    {"innovation", "out", "y_k - H x^-_k, same names and units as the measurement"},
+constexpr PortSpec kPorts[] = {
+    {"measurement", PortDirection::in, "n <= 6 measured positions, any names and units (e.g. glsdc.pose)"},
+    {"covariance", PortDirection::in, "optional n*n row-major R_k (eq. 4.28); the diagonal is used per axis"},
+    {"pose", PortDirection::out, "estimated positions, same names and units as the measurement"},
+    {"velocity", PortDirection::out, "<name>_dot [<unit>/s]"},
+    {"acceleration", PortDirection::out, "<name>_ddot [<unit>/s^2], constant_acceleration only"},
+    {"innovation", PortDirection::out, "y_k - H x^-_k, same names and units as the measurement"},
 };
 
 }  // namespace
 
 }  // namespace lode::plugins
 
-LODE_PLUGIN(lode::plugins::KalmanEstimator, "estimator.kalman", lode::PluginKind::block, "0.1.0",
+LODE_PLUGIN(lode::plugins::KalmanEstimator, "estimator.kalman", lode::PluginKind::estimator, "0.1.0",
             "Per-axis linear Kalman filter (constant acceleration or velocity) after the GLSDC, Table III",
             lode::plugins::kParams, lode::plugins::kPorts)

@@ -44,7 +44,8 @@
 #include <vector>
 
 #include "estimator/linear_axes.hpp"
-#include "lode/block.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/estimator_state.hpp"
 
 namespace lode::plugins {
 
@@ -239,7 +240,7 @@ SteadyState<N> steady_state(const AxisModel<N>& model, double r, double p0);
 
 }  // namespace kalman
 
-class KalmanEstimator final : public Block {
+class KalmanEstimator final : public Block, public EstimatorState {
  public:
   Status configure(ConfigureContext& ctx) override;
   Status activate() override;

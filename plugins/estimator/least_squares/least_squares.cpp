@@ -7,9 +7,9 @@
 
 #include "estimator/describe_json.hpp"
 #include "estimator/weighted_least_squares.hpp"
-#include "lode/plugin.hpp"
-#include "lode/units.hpp"
-#include "lode/text.hpp"
+#include "lode/sdk/plugin.hpp"
+#include "lode/sdk/units.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins {
 
@@ -227,16 +227,16 @@ constexpr ParamDoc kParams[] = {
     {"initial", "list<number>", "zeros", "the pose after activate(), one number per state (union order)"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"measurement", "in", "every model's channels, in `models` order [V]"},
-    {"pose", "out", "union of the models' state elements, in first-appearance order"},
-    {"cost", "out", "weighted residual |y - h(z)|^2_W at the published pose [1]"},
+constexpr PortSpec kPorts[] = {
+    {"measurement", PortDirection::in, "every model's channels, in `models` order [V]"},
+    {"pose", PortDirection::out, "union of the models' state elements, in first-appearance order"},
+    {"cost", PortDirection::out, "weighted residual |y - h(z)|^2_W at the published pose [1]"},
 };
 
 }  // namespace
 
 }  // namespace lode::plugins
 
-LODE_PLUGIN(lode::plugins::LeastSquaresPose, "estimator.least_squares", lode::PluginKind::block, "0.1.0",
+LODE_PLUGIN(lode::plugins::LeastSquaresPose, "estimator.least_squares", lode::PluginKind::estimator, "0.1.0",
             "Pose from one or more measurement models by weighted Gauss-Newton (warm-started, n iterations per tick)",
             lode::plugins::kParams, lode::plugins::kPorts)

@@ -36,7 +36,7 @@
 #include <string>
 #include <vector>
 
-#include "lode/block.hpp"
+#include "lode/sdk/block.hpp"
 
 namespace lode::plugins {
 

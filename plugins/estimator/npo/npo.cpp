@@ -9,10 +9,10 @@
 #include <vector>
 
 #include "estimator/describe_json.hpp"
-#include "lode/math/discretize.hpp"
-#include "lode/plugin.hpp"
-#include "lode/text.hpp"
-#include "lode/units.hpp"
+#include "lode/sdk/math/discretize.hpp"
+#include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
+#include "lode/sdk/units.hpp"
 
 namespace lode::plugins {
 
@@ -534,21 +534,21 @@ constexpr ParamDoc kParams[] = {
     {"initial_velocity", "list<number>[6]", "[0, 0, 0, 0, 0, 0]", "V^_0 [m/s, rad/s], body frame"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"measurement", "in", "Z: measured (filtered) pose x, y, z [m], phi, theta, psi [rad]"},
-    {"force", "in", "F held over the last period: a port holding the model's inputs fx ... tz by name [N, N*m]"},
-    {"velocity", "out", "V^_B: u, v, w [m/s], p, q, r [rad/s] (Eq. 12)"},
-    {"pose", "out", "P^ (Eq. 14), names and units of the measurement"},
-    {"innovation", "out", "Z_k - P^_k after the update"},
-    {"fd_velocity", "out", "(Z_k - Z_{k-1}) / T: the paper's finite-difference 'measured velocity' [m/s, rad/s]"},
-    {"state", "out", "[P^, V^_B]: the process model's 12 states (as io.sim's plant_state)"},
+constexpr PortSpec kPorts[] = {
+    {"measurement", PortDirection::in, "Z: measured (filtered) pose x, y, z [m], phi, theta, psi [rad]"},
+    {"force", PortDirection::in, "F held over the last period: a port holding the model's inputs fx ... tz by name [N, N*m]"},
+    {"velocity", PortDirection::out, "V^_B: u, v, w [m/s], p, q, r [rad/s] (Eq. 12)"},
+    {"pose", PortDirection::out, "P^ (Eq. 14), names and units of the measurement"},
+    {"innovation", PortDirection::out, "Z_k - P^_k after the update"},
+    {"fd_velocity", PortDirection::out, "(Z_k - Z_{k-1}) / T: the paper's finite-difference 'measured velocity' [m/s, rad/s]"},
+    {"state", PortDirection::out, "[P^, V^_B]: the process model's 12 states (as io.sim's plant_state)"},
 };
 
 }  // namespace
 
 }  // namespace lode::plugins
 
-LODE_PLUGIN(lode::plugins::NonlinearPassiveObserver, "estimator.npo", lode::PluginKind::block, "0.1.0",
+LODE_PLUGIN(lode::plugins::NonlinearPassiveObserver, "estimator.npo", lode::PluginKind::estimator, "0.1.0",
             "Nonlinear passive observer of 6-DOF body velocity (Gutierrez & Li 2024, Eq. 11-14) with an exact "
             "discrete update",
             lode::plugins::kParams, lode::plugins::kPorts)

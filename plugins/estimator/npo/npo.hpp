@@ -63,7 +63,7 @@
 #include <string>
 #include <vector>
 
-#include "lode/block.hpp"
+#include "lode/sdk/block.hpp"
 
 namespace lode::plugins {
 

@@ -2,8 +2,8 @@
 
 #include <string>
 
-#include "lode/plugin.hpp"
-#include "lode/text.hpp"
+#include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins {
 
@@ -82,12 +82,12 @@ constexpr ParamDoc kParams[] = {
      "so that Q_k enters P_yy and P_xy"},
 };
 
-constexpr PortDoc kPorts[] = {LODE_MODEL_ESTIMATOR_PORT_DOCS};
+constexpr PortSpec kPorts[] = {LODE_MODEL_ESTIMATOR_PORT_DOCS};
 
 }  // namespace
 
 }  // namespace lode::plugins
 
-LODE_PLUGIN(lode::plugins::UnscentedEstimator, "estimator.ukf", lode::PluginKind::block, "0.1.0",
+LODE_PLUGIN(lode::plugins::UnscentedEstimator, "estimator.ukf", lode::PluginKind::estimator, "0.1.0",
             "Unscented Kalman filter over plugin process and measurement models, sums about the centre point",
             lode::plugins::kParams, lode::plugins::kPorts)

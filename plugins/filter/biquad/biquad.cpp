@@ -7,9 +7,9 @@
 #include <numbers>
 #include <string>
 
-#include "lode/math/discretize.hpp"
-#include "lode/plugin.hpp"
-#include "lode/text.hpp"
+#include "lode/sdk/math/discretize.hpp"
+#include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins {
 
@@ -296,15 +296,15 @@ constexpr ParamDoc kParams[] = {
     {"enabled", "bool", "true", "start filtering (false: out = in until set_enabled(true))"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"in", "in", "n signals, any names and units"},
-    {"out", "out", "the n signals, filtered where selected and enabled; same names and units"},
+constexpr PortSpec kPorts[] = {
+    {"in", PortDirection::in, "n signals, any names and units"},
+    {"out", PortDirection::out, "the n signals, filtered where selected and enabled; same names and units"},
 };
 
 }  // namespace
 
 }  // namespace lode::plugins
 
-LODE_PLUGIN(lode::plugins::BiquadFilter, "filter.biquad", lode::PluginKind::block, "0.1.0",
+LODE_PLUGIN(lode::plugins::BiquadFilter, "filter.biquad", lode::PluginKind::filter, "0.1.0",
             "Per-channel biquad: RBJ low/high/band-pass or notch by prewarped Tustin, or raw coefficients",
             lode::plugins::kParams, lode::plugins::kPorts)

@@ -38,8 +38,9 @@
 #include <string>
 #include <vector>
 
-#include "lode/block.hpp"
-#include "lode/math/biquad.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/tunables.hpp"
+#include "lode/sdk/math/biquad.hpp"
 
 namespace lode::plugins {
 
@@ -66,7 +67,7 @@ struct ChannelDesign {
 
 }  // namespace biquad
 
-class BiquadFilter final : public Block {
+class BiquadFilter final : public Block, public Tunables {
  public:
   Status configure(ConfigureContext& ctx) override;
   Status activate() override;

@@ -7,9 +7,9 @@
 #include <numbers>
 #include <string>
 
-#include "lode/math/discretize.hpp"
-#include "lode/plugin.hpp"
-#include "lode/text.hpp"
+#include "lode/sdk/math/discretize.hpp"
+#include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins {
 
@@ -379,15 +379,15 @@ constexpr ParamDoc kParams[] = {
     {"enabled", "bool", "true", "start filtering (false: out = in until set_enabled(true))"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"in", "in", "n signals, any names and units (e.g. the planar pose x, y, phi)"},
-    {"out", "out", "the n signals, notched where filtered and enabled; same names and units"},
+constexpr PortSpec kPorts[] = {
+    {"in", PortDirection::in, "n signals, any names and units (e.g. the planar pose x, y, phi)"},
+    {"out", PortDirection::out, "the n signals, notched where filtered and enabled; same names and units"},
 };
 
 }  // namespace
 
 }  // namespace lode::plugins
 
-LODE_PLUGIN(lode::plugins::NotchFilter, "filter.notch", lode::PluginKind::block, "0.1.0",
+LODE_PLUGIN(lode::plugins::NotchFilter, "filter.notch", lode::PluginKind::filter, "0.1.0",
             "Per-channel second-order notch by prewarped Tustin (Silva-Rivas & Kim eq. 31-34) or raw coefficients",
             lode::plugins::kParams, lode::plugins::kPorts)

@@ -47,8 +47,9 @@
 #include <string>
 #include <vector>
 
-#include "lode/block.hpp"
-#include "lode/math/biquad.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/tunables.hpp"
+#include "lode/sdk/math/biquad.hpp"
 
 namespace lode::plugins {
 
@@ -78,7 +79,7 @@ struct ChannelDesign {
 
 }  // namespace notch
 
-class NotchFilter final : public Block {
+class NotchFilter final : public Block, public Tunables {
  public:
   Status configure(ConfigureContext& ctx) override;
   Status activate() override;

@@ -4,7 +4,7 @@
 #include <filesystem>
 #include <set>
 
-#include "lode/plugin.hpp"
+#include "lode/sdk/plugin.hpp"
 #include "lode/record/hdf5_recorder.hpp"
 
 namespace lode::plugins {
@@ -160,9 +160,9 @@ constexpr ParamDoc kParams[] = {
     {"block", "text", "this block's name", "the recorded block whose outputs are played back (e.g. stage)"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"command", "in", "optional, any size: accepted and ignored (the original board's wiring stays valid)"},
-    {"<port>", "out", "one per recorded series <block>.<port>, with its recorded element names and units"},
+constexpr PortSpec kPorts[] = {
+    {"command", PortDirection::in, "optional, any size: accepted and ignored (the original board's wiring stays valid)"},
+    {"<port>", PortDirection::out, "one per recorded series <block>.<port>, with its recorded element names and units"},
 };
 
 }  // namespace

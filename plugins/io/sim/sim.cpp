@@ -1,6 +1,6 @@
 #include "sim.hpp"
 
-#include "lode/rt_log.hpp"
+#include "lode/sdk/rt_log.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -9,9 +9,9 @@
 #include <numbers>
 #include <set>
 
-#include "lode/plugin.hpp"
-#include "lode/units.hpp"
-#include "lode/text.hpp"
+#include "lode/sdk/plugin.hpp"
+#include "lode/sdk/units.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins {
 
@@ -532,12 +532,12 @@ constexpr ParamDoc kParams[] = {
      "last cycle before the window (a frozen converter)"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"command", "in", "DAC command, exactly the plant's inputs (e.g. fx N, fy N, tz N*m)"},
-    {"signals", "out", "ADC channels [V] after offset, mains, noise and quantization"},
-    {"counts", "out", "raw signed ADC counts per channel [1]"},
-    {"truth", "out", "plant outputs (true configuration), e.g. x m, y m, theta_z rad"},
-    {"plant_state", "out", "full plant state, e.g. x, y, theta_z, vx, vy, omega_z"},
+constexpr PortSpec kPorts[] = {
+    {"command", PortDirection::in, "DAC command, exactly the plant's inputs (e.g. fx N, fy N, tz N*m)"},
+    {"signals", PortDirection::out, "ADC channels [V] after offset, mains, noise and quantization"},
+    {"counts", PortDirection::out, "raw signed ADC counts per channel [1]"},
+    {"truth", PortDirection::out, "plant outputs (true configuration), e.g. x m, y m, theta_z rad"},
+    {"plant_state", PortDirection::out, "full plant state, e.g. x, y, theta_z, vx, vy, omega_z"},
 };
 
 }  // namespace

@@ -44,11 +44,13 @@
 #include <string>
 #include <vector>
 
-#include "lode/block.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/board.hpp"
+#include "lode/sdk/tunables.hpp"
 
 namespace lode::plugins {
 
-class SimBoard final : public Block {
+class SimBoard final : public Block, public Tunables, public Board {
  public:
   Status configure(ConfigureContext& ctx) override;
   Status activate() override;

@@ -4,9 +4,9 @@
 #include <algorithm>
 #include <cmath>
 
-#include "lode/clock.hpp"
-#include "lode/plugin.hpp"
-#include "lode/units.hpp"
+#include "lode/sdk/clock.hpp"
+#include "lode/sdk/plugin.hpp"
+#include "lode/sdk/units.hpp"
 
 namespace lode::plugins {
 
@@ -338,10 +338,10 @@ constexpr ParamDoc kParams[] = {
     {"rpdo", "list<map>", "none", "what this block sends (the module's outputs): as tpdo, entries add safe_value [unit]"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"command", "in", "every rpdo entry, in its unit (written at the end of the cycle)"},
-    {"signals", "out", "every tpdo entry, scaled, in its unit"},
-    {"counts", "out", "the raw integers of the TPDO entries [1]"},
+constexpr PortSpec kPorts[] = {
+    {"command", PortDirection::in, "every rpdo entry, in its unit (written at the end of the cycle)"},
+    {"signals", PortDirection::out, "every tpdo entry, scaled, in its unit"},
+    {"counts", PortDirection::out, "the raw integers of the TPDO entries [1]"},
 };
 
 }  // namespace

@@ -29,13 +29,14 @@
 #include <vector>
 
 #include "daq_mapping.hpp"
-#include "lode/block.hpp"
-#include "lode/histogram.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/board.hpp"
+#include "lode/sdk/histogram.hpp"
 #include "lode/hal/can_socket.hpp"
 
 namespace lode::plugins {
 
-class SocketCanDaq final : public Block {
+class SocketCanDaq final : public Block, public Board {
  public:
   Status configure(ConfigureContext& ctx) override;
   Status activate() override;

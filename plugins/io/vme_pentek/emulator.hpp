@@ -21,7 +21,7 @@
 #include <vector>
 
 #include "lode/hal/register_window.hpp"
-#include "lode/status.hpp"
+#include "lode/sdk/status.hpp"
 #include "regmap.hpp"
 
 namespace lode::vme {

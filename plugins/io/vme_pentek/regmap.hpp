@@ -37,7 +37,7 @@
 #include <string>
 #include <string_view>
 
-#include "lode/status.hpp"
+#include "lode/sdk/status.hpp"
 
 namespace lode::vme {
 

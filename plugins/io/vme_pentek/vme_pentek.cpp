@@ -4,9 +4,9 @@
 #include <cmath>
 #include <cstdio>
 
-#include "lode/clock.hpp"
-#include "lode/plugin.hpp"
-#include "lode/units.hpp"
+#include "lode/sdk/clock.hpp"
+#include "lode/sdk/plugin.hpp"
+#include "lode/sdk/units.hpp"
 
 namespace lode::plugins {
 
@@ -251,10 +251,10 @@ constexpr ParamDoc kParams[] = {
     {"dac", "list<map>", "none", "DAC channels, as adc plus safe_value (driven on any fault, stop or signal) [unit]"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"command", "in", "one element per dac channel, in its unit (written at the end of the cycle)"},
-    {"signals", "out", "one element per adc channel, calibrated, in its unit (read at the start of the cycle)"},
-    {"counts", "out", "signed code index of each ADC sample [1]"},
+constexpr PortSpec kPorts[] = {
+    {"command", PortDirection::in, "one element per dac channel, in its unit (written at the end of the cycle)"},
+    {"signals", PortDirection::out, "one element per adc channel, calibrated, in its unit (read at the start of the cycle)"},
+    {"counts", PortDirection::out, "signed code index of each ADC sample [1]"},
 };
 
 }  // namespace

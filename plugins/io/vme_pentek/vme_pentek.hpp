@@ -27,14 +27,15 @@
 #include <string>
 #include <vector>
 
-#include "lode/block.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/board.hpp"
 #include "lode/hal/analog.hpp"
 #include "lode/hal/register_window.hpp"
 #include "regmap.hpp"
 
 namespace lode::plugins {
 
-class VmePentekBoard final : public Block {
+class VmePentekBoard final : public Block, public Board {
  public:
   Status configure(ConfigureContext& ctx) override;
   Status activate() override;

@@ -5,7 +5,7 @@
 #include <numbers>
 #include <string>
 
-#include "lode/plugin.hpp"
+#include "lode/sdk/plugin.hpp"
 
 namespace lode::plugins {
 
@@ -112,12 +112,6 @@ constexpr ParamDoc kParams[] = {
     {"phase_rad", "number", "0", "sinusoid phase at t = 0 [rad]"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"inputs", "in", "none: the motion is prescribed by the parameters"},
-    {"x, v", "out", "true position [m] and velocity [m/s] at the sampling instant"},
-    {"state: x, v, a", "out", "position [m], velocity [m/s], acceleration [m/s^2]"},
-};
-
 }  // namespace
 
 }  // namespace lode::plugins
@@ -125,4 +119,4 @@ constexpr PortDoc kPorts[] = {
 LODE_PLUGIN(lode::plugins::EncoderStage, "plant.encoder_stage", lode::PluginKind::plant, "0.1.0",
             "Stage axis on a prescribed trajectory (offset + ramp + sinusoid), the signal generator of "
             "Zimmerman 2006 Fig. 2",
-            lode::plugins::kParams, lode::plugins::kPorts)
+            lode::plugins::kParams, lode::kNoPorts)

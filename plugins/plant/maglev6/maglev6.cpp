@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "lode/plugin.hpp"
+#include "lode/sdk/plugin.hpp"
 
 namespace lode::plugins {
 
@@ -327,12 +327,6 @@ constexpr ParamDoc kParams[] = {
      "constant disturbance fx, fy [N], tz [N*m], fz [N], tx, ty [N*m] (e.g. cable forces)"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"iq_a, iq_b, iq_c, id_a, id_b, id_c", "in", "quadrature and direct currents of motors A, B, C [A], held over a cycle"},
-    {"x, y, theta_z, z, theta_x, theta_y", "out", "platen pose [m, m, rad, m, rad, rad]"},
-    {"state", "out", "pose then vx, vy, omega_z, vz, omega_x, omega_y [m/s, rad/s]"},
-};
-
 }  // namespace
 
 }  // namespace lode::plugins
@@ -340,4 +334,4 @@ constexpr PortDoc kPorts[] = {
 LODE_PLUGIN(lode::plugins::Maglev6, "plant.maglev6", lode::PluginKind::plant, "0.1.0",
             "Six-axis maglev platen on air bearings (Silva-Rivas & Kim 2013, eqs. 2-5) with the "
             "surrogate input matrices fitted to its printed LQ gains; exact ZOH; also a ProcessModel",
-            lode::plugins::kParams, lode::plugins::kPorts)
+            lode::plugins::kParams, lode::kNoPorts)

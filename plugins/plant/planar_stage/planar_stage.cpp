@@ -4,7 +4,7 @@
 #include <string>
 #include <vector>
 
-#include "lode/plugin.hpp"
+#include "lode/sdk/plugin.hpp"
 
 namespace lode::plugins {
 
@@ -122,16 +122,10 @@ constexpr ParamDoc kParams[] = {
     {"disturbance_torque_n_m", "number", "0", "constant yaw disturbance torque (cables)"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"fx, fy, tz", "in", "actuator force [N], [N] and yaw torque [N*m], held over a cycle"},
-    {"x, y, theta_z", "out", "platen pose [m], [m], [rad]"},
-    {"state: x, y, theta_z, vx, vy, omega_z", "out", "full state: pose and velocities [m, m, rad, m/s, m/s, rad/s]"},
-};
-
 }  // namespace
 
 }  // namespace lode::plugins
 
 LODE_PLUGIN(lode::plugins::PlanarStage, "plant.planar_stage", lode::PluginKind::plant, "0.1.0",
             "Planar 3-DOF rigid platen on air bearings, exact ZOH integration (Kawato eq. 4.44-4.47)",
-            lode::plugins::kParams, lode::plugins::kPorts)
+            lode::plugins::kParams, lode::kNoPorts)

@@ -26,7 +26,7 @@
 #include <array>
 #include <cstddef>
 
-#include "lode/model.hpp"
+#include "lode/sdk/model.hpp"
 
 namespace lode::plugins {
 

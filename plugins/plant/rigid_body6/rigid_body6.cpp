@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "lode/plugin.hpp"
+#include "lode/sdk/plugin.hpp"
 
 namespace lode::plugins {
 
@@ -214,13 +214,6 @@ constexpr ParamDoc kParams[] = {
     {"substeps", "integer", "1", "RK4 steps per advance()/propagate(), 1 ... 1000"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"fx, fy, fz, tx, ty, tz", "in", "body-frame force [N] and torque [N*m], held over a cycle"},
-    {"x, y, z, phi, theta, psi", "out", "pose in the fixed frame [m, m, m, rad, rad, rad]"},
-    {"fx, fy, fz, tx, ty, tz", "out", "the input applied over the last cycle (coil-force readback) [N, N*m]"},
-    {"state: x ... psi, u, v, w, p, q, r", "out", "pose and body velocity [m, rad, m/s, rad/s]"},
-};
-
 }  // namespace
 
 }  // namespace lode::plugins
@@ -228,4 +221,4 @@ constexpr PortDoc kPorts[] = {
 LODE_PLUGIN(lode::plugins::RigidBody6, "plant.rigid_body6", lode::PluginKind::plant, "0.1.0",
             "Free 6-DOF rigid body, Newton-Euler with Coriolis/gyroscopic terms and z-y-x Euler kinematics "
             "(Gutierrez & Li 2024, Eq. 9-10); also a process model",
-            lode::plugins::kParams, lode::plugins::kPorts)
+            lode::plugins::kParams, lode::kNoPorts)

@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "lode/plugin.hpp"
+#include "lode/sdk/plugin.hpp"
 
 namespace lode::plugins {
 
@@ -400,16 +400,10 @@ constexpr ParamDoc kParams[] = {
      "estimator model: euler (eq. 33, analytic Jacobian) or rk4 (one RK4 step, numerical Jacobian)"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"coil_voltage", "in", "coil voltage u [V], held over a period"},
-    {"gap, coil_voltage", "out", "magnet gap [m]; the coil voltage held during the last period [V]"},
-    {"state: gap, velocity, current", "out", "[m, m/s, A]; also the process state for estimators"},
-};
-
 }  // namespace
 
 }  // namespace lode::plugins
 
 LODE_PLUGIN(lode::plugins::Suspension, "plant.suspension", lode::PluginKind::plant, "0.1.0",
             "Magnet suspended under an electromagnet (Sensors 2016, eq. 13/32/33): simulator and process model",
-            lode::plugins::kParams, lode::plugins::kPorts)
+            lode::plugins::kParams, lode::kNoPorts)

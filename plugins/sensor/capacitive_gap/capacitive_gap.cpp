@@ -5,7 +5,7 @@
 #include <cstdio>
 #include <set>
 
-#include "lode/plugin.hpp"
+#include "lode/sdk/plugin.hpp"
 
 namespace lode::plugins {
 
@@ -202,15 +202,10 @@ constexpr ParamDoc kParams[] = {
     {"sensitivity_v_per_m", "number", "2e4", "probe + amplifier gain (10 V per 500 um), non-zero"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"x, y, z, phi, theta, psi", "in", "pose [m, m, m, rad, rad, rad] (state)"},
-    {"<probe names>", "out", "probe voltages [V], one channel per probe"},
-};
-
 }  // namespace
 
 }  // namespace lode::plugins
 
 LODE_PLUGIN(lode::plugins::CapacitiveGap, "sensor.capacitive_gap", lode::PluginKind::sensor, "0.1.0",
             "Capacitive gap probes on flat targets of a 6-DOF body (Gutierrez & Li 2024), analytic Jacobian",
-            lode::plugins::kParams, lode::plugins::kPorts)
+            lode::plugins::kParams, lode::kNoPorts)

@@ -11,7 +11,7 @@
 #include <utility>
 #include <vector>
 
-#include "lode/plugin.hpp"
+#include "lode/sdk/plugin.hpp"
 
 namespace lode::plugins {
 
@@ -472,16 +472,10 @@ constexpr ParamDoc kParams[] = {
      "curve fit per channel {c_v, alpha_v, beta_v}: c + alpha sin(wu) + beta sin(5wu) (eq. 3.12)"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"state: x, y, theta_z", "in", "platen pose in the world frame [m, m, rad]"},
-    {"channels: <sensor>_a, <sensor>_b per sensor", "out",
-     "Hall voltages [V]: a aligned with -y (field of world Y), b with -x (field of world X)"},
-};
-
 }  // namespace
 
 }  // namespace lode::plugins
 
 LODE_PLUGIN(lode::plugins::HalbachHall, "sensor.halbach_hall", lode::PluginKind::sensor, "0.1.0",
             "Two-axis Hall sensors over a Halbach magnet matrix (Kawato ch. 3-4), analytic Jacobian",
-            lode::plugins::kParams, lode::plugins::kPorts)
+            lode::plugins::kParams, lode::kNoPorts)

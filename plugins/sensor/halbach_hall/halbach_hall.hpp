@@ -41,7 +41,7 @@
 #include <string_view>
 #include <vector>
 
-#include "lode/model.hpp"
+#include "lode/sdk/model.hpp"
 
 namespace lode::plugins {
 

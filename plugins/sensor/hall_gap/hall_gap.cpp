@@ -4,7 +4,7 @@
 #include <string>
 #include <vector>
 
-#include "lode/plugin.hpp"
+#include "lode/sdk/plugin.hpp"
 
 namespace lode::plugins {
 
@@ -95,15 +95,10 @@ constexpr ParamDoc kParams[] = {
      "valid C_H range [V]; M_H must decrease strictly on it; C_H is clamped to it"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"state: gap, coil_voltage", "in", "gap [m] (and coil_voltage [V] for hall_voltage)"},
-    {"channel", "out", "hall [V] (hall_voltage) or gap [m] (gap)"},
-};
-
 }  // namespace
 
 }  // namespace lode::plugins
 
 LODE_PLUGIN(lode::plugins::HallGap, "sensor.hall_gap", lode::PluginKind::sensor, "0.1.0",
             "Hall-sensor gap measurement of Sensors 2016: eq. 14-16 with the coil compensation (bracketed eq. 15)",
-            lode::plugins::kParams, lode::plugins::kPorts)
+            lode::plugins::kParams, lode::kNoPorts)

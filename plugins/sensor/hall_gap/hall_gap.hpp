@@ -34,7 +34,7 @@
 #include <vector>
 
 #include "hall_polynomial.hpp"
-#include "lode/model.hpp"
+#include "lode/sdk/model.hpp"
 
 namespace lode::plugins {
 

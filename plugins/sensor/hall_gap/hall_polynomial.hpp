@@ -25,8 +25,8 @@
 #include <string>
 #include <vector>
 
-#include "lode/params.hpp"
-#include "lode/text.hpp"
+#include "lode/sdk/params.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins::hall {
 

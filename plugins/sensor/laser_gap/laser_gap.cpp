@@ -6,7 +6,7 @@
 #include <set>
 #include <string>
 
-#include "lode/plugin.hpp"
+#include "lode/sdk/plugin.hpp"
 
 namespace lode::plugins {
 
@@ -142,11 +142,6 @@ constexpr ParamDoc kParams[] = {
      "displacement [V] (default 0); spots not all on one line"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"state: z, theta_x, theta_y", "in", "platen lift [m] and tilts about x and y [rad]"},
-    {"channels: <sensor names>", "out", "one laser output per sensor [V]"},
-};
-
 }  // namespace
 
 }  // namespace lode::plugins
@@ -154,4 +149,4 @@ constexpr PortDoc kPorts[] = {
 LODE_PLUGIN(lode::plugins::LaserGap, "sensor.laser_gap", lode::PluginKind::sensor, "0.1.0",
             "Laser distance sensors on the platen: z, theta_x, theta_y from three or more spots "
             "(Silva-Rivas & Kim 2013 vertical sensing, geometry from configuration)",
-            lode::plugins::kParams, lode::plugins::kPorts)
+            lode::plugins::kParams, lode::kNoPorts)

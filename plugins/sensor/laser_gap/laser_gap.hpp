@@ -27,7 +27,7 @@
 #include <string>
 #include <vector>
 
-#include "lode/model.hpp"
+#include "lode/sdk/model.hpp"
 
 namespace lode::plugins {
 

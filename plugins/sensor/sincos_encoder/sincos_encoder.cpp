@@ -5,7 +5,7 @@
 #include <numbers>
 #include <vector>
 
-#include "lode/plugin.hpp"
+#include "lode/sdk/plugin.hpp"
 
 namespace lode::plugins {
 
@@ -129,15 +129,10 @@ constexpr ParamDoc kParams[] = {
     {"quadrature_error_rad", "number", "0", "phase error of the cos channel [rad] (extension, not in the paper)"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"state: x", "in", "absolute read-head position along the scale [m]"},
-    {"channels: sin, cos", "out", "V sin(2 pi x / pitch), V cos(2 pi x / pitch) [V] (eq. 1, 4)"},
-};
-
 }  // namespace
 
 }  // namespace lode::plugins
 
 LODE_PLUGIN(lode::plugins::SincosEncoder, "sensor.sincos_encoder", lode::PluginKind::sensor, "0.1.0",
             "Analog sin/cos linear encoder (Zimmerman 2006 eq. 1, 4) with the corrected eq. 11 Jacobian",
-            lode::plugins::kParams, lode::plugins::kPorts)
+            lode::plugins::kParams, lode::kNoPorts)

@@ -36,7 +36,7 @@
 #include <cstddef>
 #include <string>
 
-#include "lode/model.hpp"
+#include "lode/sdk/model.hpp"
 
 namespace lode::plugins {
 

@@ -15,10 +15,10 @@
 #include <string_view>
 #include <vector>
 
-#include "lode/block.hpp"
-#include "lode/params.hpp"
-#include "lode/port.hpp"
-#include "lode/text.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/params.hpp"
+#include "lode/sdk/port.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins::source {
 

@@ -3,7 +3,7 @@
 #include <algorithm>
 
 #include "../common/source_elements.hpp"
-#include "lode/plugin.hpp"
+#include "lode/sdk/plugin.hpp"
 
 namespace lode::plugins {
 
@@ -104,14 +104,14 @@ constexpr ParamDoc kParams[] = {
     {"duration_s", "number", "none (ramp forever)", "ramp length [s]; the value holds after"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"out", "out", "ramp reference, elements from names/units"},
+constexpr PortSpec kPorts[] = {
+    {"out", PortDirection::out, "ramp reference, elements from names/units"},
 };
 
 }  // namespace
 
 }  // namespace lode::plugins
 
-LODE_PLUGIN(lode::plugins::RampSource, "source.ramp", lode::PluginKind::block, "0.1.0",
+LODE_PLUGIN(lode::plugins::RampSource, "source.ramp", lode::PluginKind::source, "0.1.0",
             "Constant-rate ramp reference with optional duration and hold",
             lode::plugins::kParams, lode::plugins::kPorts)

@@ -19,12 +19,13 @@
 #include <cstdint>
 #include <vector>
 
-#include "lode/block.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/tunables.hpp"
 #include "../common/source_elements.hpp"
 
 namespace lode::plugins {
 
-class RampSource final : public Block {
+class RampSource final : public Block, public Tunables {
  public:
   Status configure(ConfigureContext& ctx) override;
   Status activate() override;

@@ -4,8 +4,8 @@
 #include <numbers>
 
 #include "../common/source_elements.hpp"
-#include "lode/plugin.hpp"
-#include "lode/text.hpp"
+#include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins {
 
@@ -135,13 +135,13 @@ constexpr ParamDoc kParams[] = {
     {"start_s", "number", "0", "scheduled start time [s], >= 0; output = offset before"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"out", "out", "sinusoidal reference, elements from names/units"},
+constexpr PortSpec kPorts[] = {
+    {"out", PortDirection::out, "sinusoidal reference, elements from names/units"},
 };
 
 }  // namespace
 
 }  // namespace lode::plugins
 
-LODE_PLUGIN(lode::plugins::SineSource, "source.sine", lode::PluginKind::block, "0.1.0",
+LODE_PLUGIN(lode::plugins::SineSource, "source.sine", lode::PluginKind::source, "0.1.0",
             "Sinusoidal reference per element", lode::plugins::kParams, lode::plugins::kPorts)

@@ -17,12 +17,13 @@
 #include <cstdint>
 #include <vector>
 
-#include "lode/block.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/tunables.hpp"
 #include "../common/source_elements.hpp"
 
 namespace lode::plugins {
 
-class SineSource final : public Block {
+class SineSource final : public Block, public Tunables {
  public:
   Status configure(ConfigureContext& ctx) override;
   Status activate() override;

@@ -4,8 +4,8 @@
 #include <string>
 
 #include "../common/source_elements.hpp"
-#include "lode/plugin.hpp"
-#include "lode/text.hpp"
+#include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins {
 
@@ -96,14 +96,14 @@ constexpr ParamDoc kParams[] = {
      "increasing time_s"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"out", "out", "piecewise-constant reference, elements from names/units"},
+constexpr PortSpec kPorts[] = {
+    {"out", PortDirection::out, "piecewise-constant reference, elements from names/units"},
 };
 
 }  // namespace
 
 }  // namespace lode::plugins
 
-LODE_PLUGIN(lode::plugins::StepSource, "source.step", lode::PluginKind::block, "0.1.0",
+LODE_PLUGIN(lode::plugins::StepSource, "source.step", lode::PluginKind::source, "0.1.0",
             "Piecewise-constant reference: absolute values at scheduled times",
             lode::plugins::kParams, lode::plugins::kPorts)

@@ -18,12 +18,13 @@
 #include <cstdint>
 #include <vector>
 
-#include "lode/block.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/tunables.hpp"
 #include "../common/source_elements.hpp"
 
 namespace lode::plugins {
 
-class StepSource final : public Block {
+class StepSource final : public Block, public Tunables {
  public:
   Status configure(ConfigureContext& ctx) override;
   Status activate() override;

@@ -4,8 +4,8 @@
 #include <string>
 
 #include "../common/source_elements.hpp"
-#include "lode/plugin.hpp"
-#include "lode/text.hpp"
+#include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins {
 
@@ -127,14 +127,14 @@ constexpr ParamDoc kParams[] = {
     {"start_s", "number", "0", "scheduled start time [s], >= 0; output = offset before"},
 };
 
-constexpr PortDoc kPorts[] = {
-    {"out", "out", "zig-zag path, elements from names/units"},
+constexpr PortSpec kPorts[] = {
+    {"out", PortDirection::out, "zig-zag path, elements from names/units"},
 };
 
 }  // namespace
 
 }  // namespace lode::plugins
 
-LODE_PLUGIN(lode::plugins::ZigzagSource, "source.zigzag", lode::PluginKind::block, "0.1.0",
+LODE_PLUGIN(lode::plugins::ZigzagSource, "source.zigzag", lode::PluginKind::source, "0.1.0",
             "Zig-zag XY reference path (Kawato Fig. 49): triangle sweep plus advance",
             lode::plugins::kParams, lode::plugins::kPorts)

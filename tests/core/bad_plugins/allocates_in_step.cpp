@@ -12,8 +12,8 @@
 
 #include <Eigen/Core>
 
-#include "lode/block.hpp"
-#include "lode/plugin.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/plugin.hpp"
 
 namespace {
 
@@ -135,7 +135,7 @@ constexpr lode::ParamDoc kParams[] = {
      "aligned_alloc, memalign, valloc, pvalloc, strdup, std_string, std_vector, eigen_dynamic or shared_ptr"},
     {"from_cycle", "integer", "0", "the first cycle whose step() allocates"},
 };
-constexpr lode::PortDoc kPorts[] = {{"out", "out", "the cycle number"}};
+constexpr lode::PortSpec kPorts[] = {{"out", lode::PortDirection::out, "the cycle number"}};
 
 }  // namespace
 

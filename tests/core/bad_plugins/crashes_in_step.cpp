@@ -6,8 +6,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "lode/block.hpp"
-#include "lode/plugin.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/plugin.hpp"
 
 namespace {
 
@@ -50,7 +50,7 @@ constexpr lode::ParamDoc kParams[] = {
     {"how", "text", "segv",
      "segv (write through a null pointer), throw (exception out of noexcept step()) or overflow (stack)"},
 };
-constexpr lode::PortDoc kPorts[] = {{"none", "-", "no ports"}};
+constexpr lode::PortSpec kPorts[] = {{"none", "-", "no ports"}};
 
 }  // namespace
 

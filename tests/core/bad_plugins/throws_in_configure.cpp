@@ -1,8 +1,8 @@
 // A block whose configure() throws: the loader and the hot swap must refuse it and keep going.
 #include <stdexcept>
 
-#include "lode/block.hpp"
-#include "lode/plugin.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/plugin.hpp"
 
 namespace {
 class ThrowsInConfigure final : public lode::Block {
@@ -13,7 +13,7 @@ class ThrowsInConfigure final : public lode::Block {
   lode::StepStatus step(const lode::Tick& /*tick*/) noexcept override { return lode::StepStatus::ok; }
 };
 constexpr lode::ParamDoc kParams[] = {{"anything", "number", "0", "never read"}};
-constexpr lode::PortDoc kPorts[] = {{"pose", "out", "never declared"}};
+constexpr lode::PortSpec kPorts[] = {{"pose", lode::PortDirection::out, "never declared"}};
 }  // namespace
 
 LODE_PLUGIN(ThrowsInConfigure, "test.throws_in_configure", lode::PluginKind::block, "0.0.1",

@@ -1,5 +1,5 @@
 // A plugin built against a different (future) ABI version.
-#include "lode/plugin.hpp"
+#include "lode/sdk/plugin.hpp"
 
 extern "C" __attribute__((visibility("default"))) const lode::PluginDescriptor* lode_plugin_descriptor() {
   static const lode::PluginDescriptor d{lode::kPluginAbiVersion + 1, sizeof(lode::PluginDescriptor),

@@ -3,7 +3,7 @@
 // refused with the parameter's name.
 #include <gtest/gtest.h>
 
-#include <lode/testing/harness.hpp>
+#include <lode/sdk/testing/harness.hpp>
 
 namespace {
 

@@ -20,15 +20,16 @@
 #include <cstdint>
 #include <string>
 
-#include "lode/block.hpp"
-#include "lode/plugin.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/estimator_state.hpp"
+#include "lode/sdk/plugin.hpp"
 
 namespace {
 
 constexpr std::size_t kMaxAxes = 6;
 constexpr std::size_t kStates = 3;  // position, velocity, acceleration per axis (as estimator.kalman)
 
-class FailingEstimator final : public lode::Block {
+class FailingEstimator final : public lode::Block, public lode::EstimatorState {
  public:
   lode::Status configure(lode::ConfigureContext& ctx) override {
     lode::Params& params = ctx.params();
@@ -120,10 +121,10 @@ constexpr lode::ParamDoc kParams[] = {
     {"slow_cycles", "integer", "1e9", "how many cycles are slow"},
     {"slow_step_us", "number", "100", "duration of a slow step() [us]"},
 };
-constexpr lode::PortDoc kPorts[] = {
-    {"measurement", "in", "a measured pose, e.g. glsdc.pose"},
-    {"pose", "out", "the measurement, passed through"},
-    {"velocity", "out", "0 per axis"},
+constexpr lode::PortSpec kPorts[] = {
+    {"measurement", lode::PortDirection::in, "a measured pose, e.g. glsdc.pose"},
+    {"pose", lode::PortDirection::out, "the measurement, passed through"},
+    {"velocity", lode::PortDirection::out, "0 per axis"},
 };
 
 }  // namespace

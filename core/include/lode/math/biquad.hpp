@@ -14,7 +14,7 @@
 #include <complex>
 #include <numbers>
 
-#include "lode/math/discretize.hpp"
+#include "lode/sdk/math/discretize.hpp"
 
 namespace lode::math {
 

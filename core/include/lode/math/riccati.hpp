@@ -2,8 +2,8 @@
 // Configure-time only. Checked against SLICOT SB02OD in tests/core/riccati_test.cpp.
 #pragma once
 
-#include "lode/math/discretize.hpp"
-#include "lode/status.hpp"
+#include "lode/sdk/math/discretize.hpp"
+#include "lode/sdk/status.hpp"
 
 namespace lode::math {
 

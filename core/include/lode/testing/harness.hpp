@@ -1,5 +1,5 @@
 // Drive one block through the same port API the scheduler uses, for plugin unit tests: the
-// tests' name for lode::BlockHost (lode/block_host.hpp), which has the whole interface.
+// tests' name for lode::BlockHost (lode/sdk/testing/block_host.hpp), which has the whole interface.
 //
 //   lode::testing::BlockHarness h("estimator.kalman", R"(
 //       motion: constant_acceleration
@@ -11,7 +11,7 @@
 //   double x = h.output("pose")[0];
 #pragma once
 
-#include "lode/block_host.hpp"
+#include "lode/sdk/testing/block_host.hpp"
 
 namespace lode::testing {
 

@@ -10,7 +10,7 @@
 #include <cstddef>
 #include <vector>
 
-#include "lode/block.hpp"
+#include "lode/sdk/block.hpp"
 
 namespace lode::testing {
 

@@ -14,7 +14,7 @@
 #include <cstdint>
 #include <string>
 
-#include "lode/status.hpp"
+#include "lode/sdk/status.hpp"
 
 namespace lode::hal {
 

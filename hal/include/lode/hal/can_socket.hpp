@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "lode/hal/can_frame.hpp"
-#include "lode/status.hpp"
+#include "lode/sdk/status.hpp"
 
 namespace lode::hal {
 

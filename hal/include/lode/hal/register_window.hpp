@@ -18,7 +18,7 @@
 #include <cstdio>
 #include <string>
 
-#include "lode/status.hpp"
+#include "lode/sdk/status.hpp"
 
 namespace lode::hal {
 

@@ -17,8 +17,8 @@
 #include <string>
 #include <vector>
 
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 
 namespace lode::plugins {

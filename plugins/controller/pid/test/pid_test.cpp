@@ -13,8 +13,8 @@
 #include <string>
 #include <vector>
 
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace {
 
@@ -275,7 +275,7 @@ TEST(PidTunables, GainsAndLimitsForEveryAxisAndEachAxis) {
                                                   "output_min: -5\noutput_max: 5\noutput_units: [V]\n", 1000.0);
   h.feed("measurement", {{"x", "m"}, {"y", "m"}});
   ASSERT_TRUE(h.configure()) << h.diagnostics();
-  const std::vector<lode::Tunable> t = h.block().tunables();
+  const std::vector<lode::Tunable> t = h.tunables().tunables();
   std::vector<std::string> names;
   for (const auto& tunable : t) names.push_back(tunable.name);
   const std::vector<std::string> expected{"kp", "kp.x", "kp.y", "ki", "ki.x", "ki.y", "kd", "kd.x", "kd.y",
@@ -288,19 +288,19 @@ TEST(PidTunables, GainsAndLimitsForEveryAxisAndEachAxis) {
   EXPECT_EQ(t[8].unit, "V*s/m");
   EXPECT_EQ(t[9].unit, "V");
   EXPECT_FALSE(t[0].integer);
-  EXPECT_EQ(h.block().tunable_value(5), 20.0);   // ki.y
-  EXPECT_EQ(h.block().tunable_value(3), 10.0);   // ki: axis x's
-  EXPECT_EQ(h.block().tunable_value(14), 5.0);   // output_max.y
+  EXPECT_EQ(h.tunables().tunable_value(5), 20.0);   // ki.y
+  EXPECT_EQ(h.tunables().tunable_value(3), 10.0);   // ki: axis x's
+  EXPECT_EQ(h.tunables().tunable_value(14), 5.0);   // output_max.y
 
   lode::testing::BlockHarness raw("controller.pid",
                                   "coefficients: {numerator: [-623.9, 1020, -386.8], denominator: [1, -1.604, 0.603]}\n"
                                   "output_min: 0.5\noutput_max: 3\n", kRate);
   raw.feed("measurement", {{"gap", "m"}});
   ASSERT_TRUE(raw.configure()) << raw.diagnostics();
-  const std::vector<lode::Tunable> limits = raw.block().tunables();
+  const std::vector<lode::Tunable> limits = raw.tunables().tunables();
   ASSERT_EQ(limits.size(), 2u) << "coefficients: only the limits";
   EXPECT_EQ(limits[0].name, "output_min");
-  EXPECT_EQ(raw.block().tunable_value(1), 3.0);
+  EXPECT_EQ(raw.tunables().tunable_value(1), 3.0);
 }
 
 TEST(PidTunables, GainChangesAreBumplessAndFollowThePositionalPid) {
@@ -318,15 +318,15 @@ TEST(PidTunables, GainChangesAreBumplessAndFollowThePositionalPid) {
     const char* why = "";
     if (k == 300) {  // ki 50 -> 120
       naive_jump = std::abs((120.0 - 50.0) / 50.0 * (model.u1 - 2.0 * (model.r1 - model.y1) - 0.01 * model.df));
-      ASSERT_TRUE(h.block().set_tunable(1, 120.0, why)) << why;
+      ASSERT_TRUE(h.tunables().set_tunable(1, 120.0, why)) << why;
       model.set_gains(2.0, 120.0, 0.01);
     }
     if (k == 600) {  // kp 2 -> 0.5
-      ASSERT_TRUE(h.block().set_tunable(0, 0.5, why)) << why;
+      ASSERT_TRUE(h.tunables().set_tunable(0, 0.5, why)) << why;
       model.set_gains(0.5, 120.0, 0.01);
     }
     if (k == 900) {  // kd 0.01 -> 0.03 (the derivative filter is still ringing from the y step)
-      ASSERT_TRUE(h.block().set_tunable(2, 0.03, why)) << why;
+      ASSERT_TRUE(h.tunables().set_tunable(2, 0.03, why)) << why;
       model.set_gains(0.5, 120.0, 0.03);
     }
     const double r = k >= 50 ? 1e-3 : 0.0;
@@ -345,9 +345,9 @@ TEST(PidTunables, GainChangesAreBumplessAndFollowThePositionalPid) {
               step_at_ki_switch, naive_jump, worst);
   EXPECT_LT(worst, 1e-12);
   EXPECT_LT(step_at_ki_switch, 0.1 * naive_jump);
-  EXPECT_EQ(h.block().tunable_value(0), 0.5);
-  EXPECT_EQ(h.block().tunable_value(1), 120.0);
-  EXPECT_EQ(h.block().tunable_value(2), 0.03);
+  EXPECT_EQ(h.tunables().tunable_value(0), 0.5);
+  EXPECT_EQ(h.tunables().tunable_value(1), 120.0);
+  EXPECT_EQ(h.tunables().tunable_value(2), 0.03);
 }
 
 TEST(PidTunables, ConstantErrorKeepsRampingAtTheNewIntegralRate) {
@@ -359,8 +359,8 @@ TEST(PidTunables, ConstantErrorKeepsRampingAtTheNewIntegralRate) {
   for (int k = 0; k < 100; ++k) h.step();
   const double u_before = h.output("out")[0];
   const char* why = "";
-  ASSERT_TRUE(h.block().set_tunable(1, 40.0, why)) << why;  // ki
-  ASSERT_TRUE(h.block().set_tunable(0, 9.0, why)) << why;   // kp: a constant error gives no P increment
+  ASSERT_TRUE(h.tunables().set_tunable(1, 40.0, why)) << why;  // ki
+  ASSERT_TRUE(h.tunables().set_tunable(0, 9.0, why)) << why;   // kp: a constant error gives no P increment
   h.step();
   EXPECT_NEAR(h.output("out")[0] - u_before, 40.0 * kT * 0.2, 1e-14);
   h.step();
@@ -388,22 +388,22 @@ TEST(PidTunables, LimitsApplyFromTheNextOutputAndRefusalsChangeNothing) {
   ASSERT_GT(h.output("out")[1], 2.0);
   const char* why = "";
   // Refusals first: nothing may change.
-  EXPECT_FALSE(h.block().set_tunable(14, -6.0, why)) << "output_max.y below output_min";
+  EXPECT_FALSE(h.tunables().set_tunable(14, -6.0, why)) << "output_max.y below output_min";
   EXPECT_NE(std::string(why).find("output_min"), std::string::npos) << why;
-  EXPECT_FALSE(h.block().set_tunable(10, 5.0, why)) << "output_min = output_max";
-  EXPECT_FALSE(h.block().set_tunable(0, std::nan(""), why));
-  EXPECT_FALSE(h.block().set_tunable(6, 1.0, why)) << "kd without a derivative filter";
+  EXPECT_FALSE(h.tunables().set_tunable(10, 5.0, why)) << "output_min = output_max";
+  EXPECT_FALSE(h.tunables().set_tunable(0, std::nan(""), why));
+  EXPECT_FALSE(h.tunables().set_tunable(6, 1.0, why)) << "kd without a derivative filter";
   EXPECT_NE(std::string(why).find("derivative_filter_rad_s"), std::string::npos) << why;
-  EXPECT_FALSE(h.block().set_tunable(15, 1.0, why));
+  EXPECT_FALSE(h.tunables().set_tunable(15, 1.0, why));
   for (int k = 0; k < 20; ++k) {
     run(h);
     run(twin);
     ASSERT_EQ(h.output("out")[0], twin.output("out")[0]);
     ASSERT_EQ(h.output("out")[1], twin.output("out")[1]);
   }
-  EXPECT_EQ(h.block().tunable_value(14), 5.0);
+  EXPECT_EQ(h.tunables().tunable_value(14), 5.0);
   // output_max.y = 2: y's next output sits on the new limit, x's is untouched.
-  ASSERT_TRUE(h.block().set_tunable(14, 2.0, why)) << why;
+  ASSERT_TRUE(h.tunables().set_tunable(14, 2.0, why)) << why;
   run(h);
   run(twin);
   EXPECT_EQ(h.output("out")[1], 2.0);
@@ -417,7 +417,7 @@ TEST(PidTunables, SetTunableAllocatesNothing) {
   h.feed("measurement", {{"x", "m"}, {"y", "m"}});
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   ASSERT_TRUE(h.activate());
-  lode::Block& block = h.block();
+  lode::Tunables& block = h.tunables();
   auto measurement = h.input("measurement");
   const char* why = "";
   int accepted = 0;

@@ -4,7 +4,7 @@
 #include <string_view>
 
 #include "estimator/element_names.hpp"
-#include "lode/units.hpp"
+#include "lode/sdk/units.hpp"
 
 namespace lode::plugins::estimator {
 

@@ -6,8 +6,8 @@
 #include <limits>
 
 #include "estimator/element_names.hpp"
-#include "lode/text.hpp"
-#include "lode/units.hpp"
+#include "lode/sdk/text.hpp"
+#include "lode/sdk/units.hpp"
 
 namespace lode::plugins::nonlinear {
 

@@ -9,7 +9,7 @@
 #include "estimator/element_names.hpp"
 #include "estimator/model_configuration.hpp"
 #include "estimator/usable_covariance.hpp"
-#include "lode/units.hpp"
+#include "lode/sdk/units.hpp"
 
 namespace lode::plugins::nonlinear {
 

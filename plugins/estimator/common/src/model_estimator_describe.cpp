@@ -7,7 +7,7 @@
 
 #include "estimator/describe_json.hpp"
 #include "estimator/model_estimator.hpp"
-#include "lode/math/riccati.hpp"
+#include "lode/sdk/math/riccati.hpp"
 
 namespace lode::plugins::nonlinear {
 

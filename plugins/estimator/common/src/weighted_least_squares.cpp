@@ -2,7 +2,7 @@
 
 #include <string>
 
-#include "lode/text.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins::estimator {
 

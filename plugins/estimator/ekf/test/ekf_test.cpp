@@ -18,10 +18,10 @@
 #include "estimator/testing/harness_setup.hpp"
 #include "estimator/testing/state_handover.hpp"
 #include "estimator/testing/suspension_estimator.hpp"
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/require.hpp"
-#include "lode/testing/harness.hpp"
-#include "lode/testing/state_export.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/require.hpp"
+#include "lode/sdk/testing/harness.hpp"
+#include "lode/sdk/testing/state_export.hpp"
 
 namespace {
 

@@ -16,10 +16,10 @@
 #include <string>
 
 #include "estimator/testing/harness_setup.hpp"
-#include "lode/math/discretize.hpp"
-#include "lode/math/riccati.hpp"
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/math/discretize.hpp"
+#include "lode/sdk/math/riccati.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace lode::plugins {
 namespace {

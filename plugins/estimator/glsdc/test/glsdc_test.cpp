@@ -22,9 +22,9 @@
 #include <string>
 #include <vector>
 
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/harness.hpp"
-#include "lode/testing/state_export.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/harness.hpp"
+#include "lode/sdk/testing/state_export.hpp"
 
 
 namespace lode::plugins {
@@ -723,7 +723,7 @@ std::vector<std::vector<double>> noisy_path(Truth& truth, int n, unsigned seed) 
 TEST(GlsdcState, LayoutAndExportBeforeTheFirstSolve) {
   Rig rig(params_with_initial(0.001, -0.002, 0.003), hall_model("hall", "[1, 5]"));
   ASSERT_TRUE(rig.ok());
-  const StateLayout layout = rig.block().state_layout();
+  const StateLayout layout = rig.estimator().state_layout();
   ASSERT_EQ(layout.size(), 3u);
   EXPECT_EQ(layout.elements[0].name, "x");
   EXPECT_EQ(layout.elements[0].unit, "m");
@@ -732,11 +732,11 @@ TEST(GlsdcState, LayoutAndExportBeforeTheFirstSolve) {
   EXPECT_EQ(layout.elements[2].name, "theta_z");
   EXPECT_EQ(layout.elements[2].unit, "rad");
   EXPECT_TRUE(layout.covariance);
-  EXPECT_EQ(rig.block().innovation_size(), 0u) << "a batch solver has no innovation";
+  EXPECT_EQ(rig.estimator().innovation_size(), 0u) << "a batch solver has no innovation";
   double nu = 0.0, s = 0.0;
-  EXPECT_FALSE(rig.block().innovation(&nu, &s));
+  EXPECT_FALSE(rig.estimator().innovation(&nu, &s));
   // Before any solve: the initial pose and "unknown" (1 m^2, 1 m^2, 1 rad^2), positive definite.
-  const auto e = lode::testing::export_state_of(rig.block());
+  const auto e = lode::testing::export_state_of(rig.estimator());
   EXPECT_EQ(e.values, (std::vector<double>{0.001, -0.002, 0.003}));
   EXPECT_EQ(e.covariance, (std::vector<double>{1, 0, 0, 0, 1, 0, 0, 0, 1}));
 }
@@ -747,7 +747,7 @@ TEST(GlsdcState, ExportIsTheWarmStartAndThePublishedR) {
   Rig rig("model: hall", hall_model("hall", "[1, 5]"));
   ASSERT_TRUE(rig.ok());
   for (const auto& y : noisy_path(truth, 20, 5)) ASSERT_EQ(rig.step(y), StepStatus::ok);
-  const auto e = lode::testing::export_state_of(rig.block());
+  const auto e = lode::testing::export_state_of(rig.estimator());
   for (int a = 0; a < 3; ++a) {
     EXPECT_EQ(e.values[static_cast<std::size_t>(a)], rig.pose(a));
     for (int b = 0; b < 3; ++b) {
@@ -763,7 +763,7 @@ TEST(GlsdcState, ExportIsTheWarmStartAndThePublishedR) {
   Rig two(params_with_initial(0.0, 0.0, 0.002, "mode: 2dof\n"), hall_model("hall", "[1, 5]"));
   ASSERT_TRUE(two.ok());
   for (int k = 0; k < 5; ++k) ASSERT_EQ(two.step(truth.measure(1e-4, 2e-4, 0.002)), StepStatus::ok);
-  const auto e2 = lode::testing::export_state_of(two.block());
+  const auto e2 = lode::testing::export_state_of(two.estimator());
   EXPECT_EQ(two.covariance(2, 2), 0.0) << "the published R keeps theta's row and column 0";
   EXPECT_EQ(e2.covariance[8], Glsdc::kUnknownVariance);
   EXPECT_EQ(e2.covariance[2], 0.0);
@@ -782,10 +782,10 @@ TEST(GlsdcState, ExportImportReproducesTheNextStepsBitForBit) {
     ASSERT_TRUE(a.ok() && b.ok());
     const auto path = noisy_path(truth, 120, 9);
     for (int k = 0; k < 100; ++k) ASSERT_EQ(a.step(path[static_cast<std::size_t>(k)]), StepStatus::ok);
-    const auto e = lode::testing::export_state_of(a.block());
+    const auto e = lode::testing::export_state_of(a.estimator());
     const std::uint8_t present[3] = {1, 1, 1};
-    b.block().import_state(e.values.data(), e.covariance.data(), present);
-    EXPECT_EQ(lode::testing::export_state_of(b.block()).values, e.values);
+    b.estimator().import_state(e.values.data(), e.covariance.data(), present);
+    EXPECT_EQ(lode::testing::export_state_of(b.estimator()).values, e.values);
     for (int k = 100; k < 120; ++k) {
       ASSERT_EQ(a.step(path[static_cast<std::size_t>(k)]), StepStatus::ok);
       ASSERT_EQ(b.step(path[static_cast<std::size_t>(k)]), StepStatus::ok);
@@ -803,10 +803,10 @@ TEST(GlsdcState, PresentMaskKeepsTheInitialPose) {
   ASSERT_TRUE(rig.ok());
   const double values[3] = {0.004, std::nan(""), 0.006};
   const std::uint8_t present[3] = {1, 1, 0};
-  rig.block().import_state(values, nullptr, present);
-  EXPECT_EQ(lode::testing::export_state_of(rig.block()).values, (std::vector<double>{0.004, -0.002, 0.003}))
+  rig.estimator().import_state(values, nullptr, present);
+  EXPECT_EQ(lode::testing::export_state_of(rig.estimator()).values, (std::vector<double>{0.004, -0.002, 0.003}))
       << "absent or non-finite: the configured initial pose";
-  EXPECT_TRUE(positive_definite(lode::testing::export_state_of(rig.block()).covariance));
+  EXPECT_TRUE(positive_definite(lode::testing::export_state_of(rig.estimator()).covariance));
 }
 
 TEST(GlsdcInvalid, PropagateMakesTheCycleNaNAndKeepsTheWarmStart) {
@@ -820,7 +820,7 @@ TEST(GlsdcInvalid, PropagateMakesTheCycleNaNAndKeepsTheWarmStart) {
     ASSERT_EQ(rig.step(path[static_cast<std::size_t>(k)]), StepStatus::ok);
     ASSERT_EQ(reference.step(path[static_cast<std::size_t>(k)]), StepStatus::ok);
   }
-  const auto before = lode::testing::export_state_of(rig.block());
+  const auto before = lode::testing::export_state_of(rig.estimator());
   std::vector<double> bad = path[30];
   bad[1] = std::nan("");
   ASSERT_EQ(rig.step(bad), StepStatus::ok);
@@ -829,7 +829,7 @@ TEST(GlsdcInvalid, PropagateMakesTheCycleNaNAndKeepsTheWarmStart) {
     for (int j = 0; j < 3; ++j) EXPECT_TRUE(std::isnan(rig.covariance(i, j)));
   }
   EXPECT_TRUE(std::isnan(rig.cost()));
-  const auto during = lode::testing::export_state_of(rig.block());
+  const auto during = lode::testing::export_state_of(rig.estimator());
   EXPECT_EQ(during.values, before.values) << "the warm start is kept";
   EXPECT_EQ(during.covariance, before.covariance);
   // The next valid cycle continues exactly as if the bad one had not happened.
@@ -866,9 +866,9 @@ TEST(GlsdcState, ExportImportDoNotAllocate) {
     const std::vector<double>& y = path[static_cast<std::size_t>(k % 100)];
     std::copy(y.begin(), y.end(), in.begin());
     rig.harness().step();
-    rig.block().export_state(values, covariance);
-    rig.block().import_state(values, covariance, present);
-    (void)rig.block().innovation(&nu, &s);
+    rig.estimator().export_state(values, covariance);
+    rig.estimator().import_state(values, covariance, present);
+    (void)rig.estimator().innovation(&nu, &s);
   }
   EXPECT_EQ(static_cast<long>(lode::testing::allocation_count()) - before, 0);
 }

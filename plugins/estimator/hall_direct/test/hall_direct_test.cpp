@@ -9,8 +9,8 @@
 #include <string>
 
 #include "estimator/testing/harness_setup.hpp"
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace {
 

@@ -22,10 +22,10 @@
 #include "estimator/testing/constant_acceleration_axis.hpp"
 #include "estimator/testing/harness_setup.hpp"
 #include "estimator/testing/state_handover.hpp"
-#include "lode/math/riccati.hpp"
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/harness.hpp"
-#include "lode/testing/state_export.hpp"
+#include "lode/sdk/math/riccati.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/harness.hpp"
+#include "lode/sdk/testing/state_export.hpp"
 
 namespace lode::plugins {
 namespace {
@@ -507,14 +507,14 @@ TEST(HybridBlock, StepAllocatesNothing) {
 TEST(HybridTunables, ReportsDInZeroOne) {
   Rig rig("q: 1.0e3\nr: 1.0e-6\nhinf_theta: 5.0e5\nd: 0.7");
   ASSERT_TRUE(rig.status) << rig.h.diagnostics();
-  const std::vector<Tunable> t = rig.h.block().tunables();
+  const std::vector<Tunable> t = rig.h.tunables().tunables();
   ASSERT_EQ(t.size(), 1u);
   EXPECT_EQ(t[0].name, "d");
   EXPECT_EQ(t[0].unit, "1");
   EXPECT_EQ(t[0].min, 0.0);
   EXPECT_EQ(t[0].max, 1.0);
   EXPECT_FALSE(t[0].integer);
-  EXPECT_DOUBLE_EQ(rig.h.block().tunable_value(0), 0.7);
+  EXPECT_DOUBLE_EQ(rig.h.tunables().tunable_value(0), 0.7);
 }
 
 TEST(HybridTunables, SetDTakesEffectAtTheNextStepWithoutResettingTheState) {
@@ -534,8 +534,8 @@ TEST(HybridTunables, SetDTakesEffectAtTheNextStepWithoutResettingTheState) {
   for (std::size_t k = 0; k < y.size(); ++k) {
     if (k == kSwitch) {
       const char* why = "";
-      ASSERT_TRUE(rig.h.block().set_tunable(0, kNewD, why)) << why;
-      EXPECT_DOUBLE_EQ(rig.h.block().tunable_value(0), kNewD);
+      ASSERT_TRUE(rig.h.tunables().set_tunable(0, kNewD, why)) << why;
+      EXPECT_DOUBLE_EQ(rig.h.tunables().tunable_value(0), kNewD);
     }
     const Vector3 gain = k < kSwitch ? kk : Vector3(kNewD * kk + (1.0 - kNewD) * kh);
     const Vector3 prior = phi * x;
@@ -562,15 +562,15 @@ TEST(HybridTunables, RefusedDChangesNothing) {
   for (std::size_t k = 0; k < y.size(); ++k) {
     if (k == 300) {
       const char* why = "";
-      EXPECT_FALSE(rig.h.block().set_tunable(0, 0.5, why));
+      EXPECT_FALSE(rig.h.tunables().set_tunable(0, 0.5, why));
       EXPECT_NE(std::string(why).find("unstable"), std::string::npos) << why;
       why = "";
-      EXPECT_FALSE(rig.h.block().set_tunable(0, std::nan(""), why));
+      EXPECT_FALSE(rig.h.tunables().set_tunable(0, std::nan(""), why));
       EXPECT_STRNE(why, "");
       why = "";
-      EXPECT_FALSE(rig.h.block().set_tunable(7, 0.5, why));
+      EXPECT_FALSE(rig.h.tunables().set_tunable(7, 0.5, why));
       EXPECT_STRNE(why, "");
-      EXPECT_DOUBLE_EQ(rig.h.block().tunable_value(0), 1.0);
+      EXPECT_DOUBLE_EQ(rig.h.tunables().tunable_value(0), 1.0);
     }
     rig.step(y[k]);
     twin.step(y[k]);
@@ -582,7 +582,7 @@ TEST(HybridTunables, SetTunableAllocatesNothing) {
   LODE_REQUIRE_ALLOCATION_COUNTING();
   Rig rig(kPaperParams, kSixAxes);
   ASSERT_TRUE(rig.status) << rig.h.diagnostics();
-  Block& block = rig.h.block();
+  Tunables& block = rig.h.tunables();
   const char* why = "";
   int accepted = 0;
   const auto before = lode::testing::allocation_count();
@@ -608,8 +608,8 @@ TEST(HybridState, LayoutMatchesTheKalmanOneToOneAndStateCrossesBothWays) {
     ASSERT_TRUE(h->configure()) << h->diagnostics();
     ASSERT_TRUE(h->activate());
   }
-  const StateLayout from_hybrid = hybrid_h.block().state_layout();
-  const StateLayout from_kalman = kalman_h.block().state_layout();
+  const StateLayout from_hybrid = hybrid_h.estimator().state_layout();
+  const StateLayout from_kalman = kalman_h.estimator().state_layout();
   ASSERT_EQ(from_hybrid.size(), 9u);
   ASSERT_EQ(from_hybrid.size(), from_kalman.size());
   for (std::size_t i = 0; i < from_hybrid.size(); ++i) {
@@ -619,7 +619,7 @@ TEST(HybridState, LayoutMatchesTheKalmanOneToOneAndStateCrossesBothWays) {
   EXPECT_EQ(from_hybrid.elements[2].name, "x_ddot");
   EXPECT_EQ(from_hybrid.elements[2].unit, "m/s^2");
   EXPECT_TRUE(from_hybrid.covariance);
-  EXPECT_EQ(hybrid_h.block().innovation_size(), kalman_h.block().innovation_size());
+  EXPECT_EQ(hybrid_h.estimator().innovation_size(), kalman_h.estimator().innovation_size());
 
   auto run = [](BlockHarness& h, int from, int to) {
     auto y = h.input("measurement");
@@ -631,15 +631,15 @@ TEST(HybridState, LayoutMatchesTheKalmanOneToOneAndStateCrossesBothWays) {
   const std::vector<std::uint8_t> present(9, 1);
   // kalman -> hybrid: the state arrives unchanged.
   run(kalman_h, 0, 400);
-  const auto k_state = lode::testing::export_state_of(kalman_h.block());
-  hybrid_h.block().import_state(k_state.values.data(), k_state.covariance.data(), present.data());
-  EXPECT_EQ(lode::testing::export_state_of(hybrid_h.block()).values, k_state.values);
+  const auto k_state = lode::testing::export_state_of(kalman_h.estimator());
+  hybrid_h.estimator().import_state(k_state.values.data(), k_state.covariance.data(), present.data());
+  EXPECT_EQ(lode::testing::export_state_of(hybrid_h.estimator()).values, k_state.values);
   // hybrid -> kalman: the state and the hybrid's steady covariance arrive unchanged.
   run(hybrid_h, 400, 800);
-  const auto h_state = lode::testing::export_state_of(hybrid_h.block());
+  const auto h_state = lode::testing::export_state_of(hybrid_h.estimator());
   EXPECT_TRUE(lode::testing::covariance_usable(h_state.covariance, 9));
-  kalman_h.block().import_state(h_state.values.data(), h_state.covariance.data(), present.data());
-  const auto k_after = lode::testing::export_state_of(kalman_h.block());
+  kalman_h.estimator().import_state(h_state.values.data(), h_state.covariance.data(), present.data());
+  const auto k_after = lode::testing::export_state_of(kalman_h.estimator());
   EXPECT_EQ(k_after.values, h_state.values);
   EXPECT_EQ(k_after.covariance, h_state.covariance);
   // Both now hold the same prior x^-_k: the first innovation after the swap is the same number.
@@ -689,11 +689,11 @@ TEST(HybridState, SteadyCovarianceSolvesTheLyapunovEquationAndIsTheDarePriorAtDO
   std::printf("hybrid d = 0.3: steady P^-(0,0) = %.4g m^2 vs Kalman %.4g m^2\n", s(0, 0), kalman.prior_cov(0, 0));
 
   // A new d at run time moves the exported covariance with it (at the next step).
-  const double before = lode::testing::export_state_of(rig.h.block()).covariance[0];
+  const double before = lode::testing::export_state_of(rig.h.estimator()).covariance[0];
   const char* why = "";
-  ASSERT_TRUE(rig.h.block().set_tunable(0, 1.0, why)) << why;
+  ASSERT_TRUE(rig.h.tunables().set_tunable(0, 1.0, why)) << why;
   ASSERT_EQ(rig.step(0.0), StepStatus::ok);
-  const double after = lode::testing::export_state_of(rig.h.block()).covariance[0];
+  const double after = lode::testing::export_state_of(rig.h.estimator()).covariance[0];
   EXPECT_NE(after, before);
   EXPECT_NEAR(after, kalman.prior_cov(0, 0), 1e-8 * kalman.prior_cov(0, 0));
 }
@@ -734,14 +734,14 @@ TEST(HybridState, PresentMaskKeepsInitialValuesAndTheCovarianceStaysPositiveDefi
   ASSERT_TRUE(a.status) << a.h.diagnostics();
   ASSERT_TRUE(b.status) << b.h.diagnostics();
   for (int k = 0; k < 300; ++k) ASSERT_EQ(a.step(1e-4 * std::sin(0.03 * k)), StepStatus::ok);
-  const auto e = lode::testing::export_state_of(a.h.block());
+  const auto e = lode::testing::export_state_of(a.h.estimator());
   std::vector<std::uint8_t> present(9, 1);
   present[1] = 0;  // x_dot
   present[6] = present[7] = present[8] = 0;  // theta_z, all of it
   std::vector<double> values = e.values;
   values[4] = NAN;  // a non-finite value counts as absent
-  b.h.block().import_state(values.data(), nullptr, present.data());
-  const auto got = lode::testing::export_state_of(b.h.block());
+  b.h.estimator().import_state(values.data(), nullptr, present.data());
+  const auto got = lode::testing::export_state_of(b.h.estimator());
   for (std::size_t i = 0; i < 9; ++i) {
     const bool given = present[i] != 0 && i != 4;
     EXPECT_EQ(got.values[i], given ? e.values[i] : 0.0) << i;
@@ -784,13 +784,13 @@ TEST(HybridInvalid, PredictCoastsTheAxisWithANaNAndFaultModeIsUnchanged) {
     ASSERT_EQ(coast.step(1e-5 * std::sin(0.05 * k)), StepStatus::ok);
     ASSERT_EQ(reference.step(1e-5 * std::sin(0.05 * k)), StepStatus::ok);
   }
-  const auto before = lode::testing::export_state_of(coast.h.block());
+  const auto before = lode::testing::export_state_of(coast.h.estimator());
   for (std::size_t i = 0; i < 6; ++i) coast.input[i] = reference.input[i] = 2e-6;
   coast.input[3] = std::nan("");
   ASSERT_EQ(coast.h.step(), StepStatus::ok) << coast.h.block().fault_reason();
   ASSERT_EQ(reference.h.step(), StepStatus::ok);
   double nu[6], s[6];
-  EXPECT_FALSE(coast.h.block().innovation(nu, s));
+  EXPECT_FALSE(coast.h.estimator().innovation(nu, s));
   for (const char* port : {"pose", "velocity", "acceleration", "innovation"}) {
     for (std::size_t i = 0; i < 6; ++i) {
       EXPECT_TRUE(std::isfinite(coast.h.output(port)[i])) << port << i;
@@ -800,38 +800,38 @@ TEST(HybridInvalid, PredictCoastsTheAxisWithANaNAndFaultModeIsUnchanged) {
     }
   }
   // Axis 3 (z): x^+ = x^- (output: filtered), x^-_{k+1} = Phi x^-_k.
-  const auto after = lode::testing::export_state_of(coast.h.block());
+  const auto after = lode::testing::export_state_of(coast.h.estimator());
   EXPECT_EQ(coast.h.output("pose")[3], before.values[9]);
   const Vector3 x(before.values[9], before.values[10], before.values[11]);
   const Vector3 expected = AxisModel::make(kT).phi * x;
   for (int a = 0; a < 3; ++a) EXPECT_EQ(after.values[9 + static_cast<std::size_t>(a)], expected(a));
   ASSERT_EQ(coast.step(2e-6), StepStatus::ok);
-  EXPECT_TRUE(coast.h.block().innovation(nu, s));
+  EXPECT_TRUE(coast.h.estimator().innovation(nu, s));
 
   // Fault mode: the fault leaves every axis exactly as it was.
-  const auto ref_before = lode::testing::export_state_of(reference.h.block());
+  const auto ref_before = lode::testing::export_state_of(reference.h.estimator());
   reference.input[5] = std::nan("");
   EXPECT_EQ(reference.h.step(), StepStatus::fault);
-  EXPECT_EQ(lode::testing::export_state_of(reference.h.block()).values, ref_before.values);
-  EXPECT_FALSE(reference.h.block().innovation(nu, s));
+  EXPECT_EQ(lode::testing::export_state_of(reference.h.estimator()).values, ref_before.values);
+  EXPECT_FALSE(reference.h.estimator().innovation(nu, s));
 }
 
 TEST(HybridState, ExportImportInnovationAllocateNothing) {
   LODE_REQUIRE_ALLOCATION_COUNTING();
   Rig rig(kPaperParams, kSixAxes);
   ASSERT_TRUE(rig.status) << rig.h.diagnostics();
-  const StateLayout layout = rig.h.block().state_layout();
+  const StateLayout layout = rig.h.estimator().state_layout();
   std::vector<double> values(layout.size()), covariance(layout.size() * layout.size());
   const std::vector<std::uint8_t> present(layout.size(), 1);
   double nu[6], s[6];
   const char* why = "";
   const auto before = lode::testing::allocation_count();
   for (int k = 0; k < 2000; ++k) {
-    if (k == 1000) (void)rig.h.block().set_tunable(0, 0.8, why);  // recomputes the steady covariance
+    if (k == 1000) (void)rig.h.tunables().set_tunable(0, 0.8, why);  // recomputes the steady covariance
     rig.step(1e-6 * std::sin(k * 0.1));
-    rig.h.block().export_state(values.data(), covariance.data());
-    rig.h.block().import_state(values.data(), covariance.data(), present.data());
-    (void)rig.h.block().innovation(nu, s);
+    rig.h.estimator().export_state(values.data(), covariance.data());
+    rig.h.estimator().import_state(values.data(), covariance.data(), present.data());
+    (void)rig.h.estimator().innovation(nu, s);
   }
   EXPECT_EQ(lode::testing::allocation_count() - before, 0u);
 }

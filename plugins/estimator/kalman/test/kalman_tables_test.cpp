@@ -21,7 +21,7 @@
 #include <string>
 #include <vector>
 
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace lode::plugins {
 namespace {

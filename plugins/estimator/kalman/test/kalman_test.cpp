@@ -22,9 +22,9 @@
 #include "estimator/testing/harness_setup.hpp"
 #include "estimator/testing/state_handover.hpp"
 #include "estimator/testing/yaml_numbers.hpp"
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/harness.hpp"
-#include "lode/testing/state_export.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/harness.hpp"
+#include "lode/sdk/testing/state_export.hpp"
 
 
 namespace lode::plugins {
@@ -357,7 +357,7 @@ TEST(EstimatorKalmanState, LayoutNamesUnitsAndCovariance) {
   BlockHarness ca("estimator.kalman", "q: [100, 100, 1e5]\nr: [2.2e-10, 2.2e-10, 9.6e-9]\n", kRateHz);
   ca.feed("measurement", kPose);
   ASSERT_TRUE(ca.configure()) << ca.diagnostics();
-  const StateLayout layout = ca.block().state_layout();
+  const StateLayout layout = ca.estimator().state_layout();
   const Elements expected{{"x", "m"},         {"x_dot", "m/s"},         {"x_ddot", "m/s^2"},
                           {"y", "m"},         {"y_dot", "m/s"},         {"y_ddot", "m/s^2"},
                           {"theta_z", "rad"}, {"theta_z_dot", "rad/s"}, {"theta_z_ddot", "rad/s^2"}};
@@ -367,25 +367,25 @@ TEST(EstimatorKalmanState, LayoutNamesUnitsAndCovariance) {
     EXPECT_EQ(layout.elements[i].unit, expected[i].unit);
   }
   EXPECT_TRUE(layout.covariance);
-  EXPECT_EQ(ca.block().innovation_size(), 3u);
+  EXPECT_EQ(ca.estimator().innovation_size(), 3u);
 
   BlockHarness cv("estimator.kalman", "motion: constant_velocity\nq: 10\nr: 1e-10\n", kRateHz);
   cv.feed("measurement", {{"z", "m"}});
   ASSERT_TRUE(cv.configure()) << cv.diagnostics();
-  const StateLayout cv_layout = cv.block().state_layout();
+  const StateLayout cv_layout = cv.estimator().state_layout();
   ASSERT_EQ(cv_layout.size(), 2u);
   EXPECT_EQ(cv_layout.elements[1].name, "z_dot");
   EXPECT_EQ(cv_layout.elements[1].unit, "m/s");
 
   // Before any step: x^-_0 = 0 and P^-_0 = p0 I (block diagonal, cross-axis zero).
   ASSERT_TRUE(ca.activate());
-  const auto e = lode::testing::export_state_of(ca.block());
+  const auto e = lode::testing::export_state_of(ca.estimator());
   for (std::size_t i = 0; i < 9; ++i) {
     EXPECT_EQ(e.values[i], 0.0);
     for (std::size_t j = 0; j < 9; ++j) EXPECT_EQ(e.covariance[i * 9 + j], i == j ? 1e-8 : 0.0) << i << "," << j;
   }
   double residual[3], variance[3];
-  EXPECT_FALSE(ca.block().innovation(residual, variance)) << "no update before the first step";
+  EXPECT_FALSE(ca.estimator().innovation(residual, variance)) << "no update before the first step";
 }
 
 /// Export from a running instance, import into a fresh one, then both must produce the same
@@ -444,12 +444,12 @@ TEST(EstimatorKalmanState, ImportClearsTheFirstMeasurementStart) {
   const double values[3] = {1e-3, 0.0, 0.0};
   const double covariance[9] = {1e-10, 0, 0, 0, 1e-6, 0, 0, 0, 1e-2};
   const std::uint8_t present[3] = {1, 1, 1};
-  h.block().import_state(values, covariance, present);
+  h.estimator().import_state(values, covariance, present);
   h.input("measurement")[0] = 1.1e-3;
   ASSERT_EQ(h.step(), StepStatus::ok);
   EXPECT_NEAR(h.output("innovation")[0], 1e-4, 1e-15);
   double residual = 0.0, variance = 0.0;
-  ASSERT_TRUE(h.block().innovation(&residual, &variance));
+  ASSERT_TRUE(h.estimator().innovation(&residual, &variance));
   EXPECT_EQ(residual, h.output("innovation")[0]);
   EXPECT_DOUBLE_EQ(variance, 1e-10 + 2.2e-10) << "S = H P^- H' + R of the imported P";
 }
@@ -467,15 +467,15 @@ TEST(EstimatorKalmanState, PresentMaskKeepsInitialValuesAndP0) {
     for (std::size_t i = 0; i < 3; ++i) y[i] = sine_measurement(k, i);
     ASSERT_EQ(a.step(), StepStatus::ok);
   }
-  auto e = lode::testing::export_state_of(a.block());
+  auto e = lode::testing::export_state_of(a.estimator());
   // Mark the y axis velocity and everything of theta_z absent; give a cross-axis term too
   // (a UKF could): it must be dropped, the filter is block diagonal.
   std::vector<std::uint8_t> present(9, 1);
   present[4] = 0;
   present[6] = present[7] = present[8] = 0;
   e.covariance[0 * 9 + 3] = e.covariance[3 * 9 + 0] = 0.5 * std::sqrt(e.covariance[0] * e.covariance[30]);
-  b.block().import_state(e.values.data(), e.covariance.data(), present.data());
-  const auto got = lode::testing::export_state_of(b.block());
+  b.estimator().import_state(e.values.data(), e.covariance.data(), present.data());
+  const auto got = lode::testing::export_state_of(b.estimator());
   const double p0[3] = {1e-8, 2e-8, 3e-8};
   for (std::size_t i = 0; i < 9; ++i) {
     const std::size_t axis = i / 3;
@@ -497,8 +497,8 @@ TEST(EstimatorKalmanState, PresentMaskKeepsInitialValuesAndP0) {
   bad[1] = NAN;
   bad[3 * 9 + 4] = 7.0;
   const std::vector<std::uint8_t> all(9, 1);
-  b.block().import_state(e.values.data(), bad.data(), all.data());
-  const auto repaired = lode::testing::export_state_of(b.block());
+  b.estimator().import_state(e.values.data(), bad.data(), all.data());
+  const auto repaired = lode::testing::export_state_of(b.estimator());
   EXPECT_TRUE(lode::testing::covariance_usable(repaired.covariance, 9));
   for (std::size_t i = 0; i < 9; ++i) EXPECT_EQ(repaired.covariance[i * 9 + i], p0[i / 3]) << i;
   ASSERT_EQ(b.step(), StepStatus::ok);
@@ -542,14 +542,14 @@ TEST(EstimatorKalmanInvalid, PredictCoastsTheAxisWithANaN) {
     ASSERT_EQ(run(h, k, false), StepStatus::ok);
     ASSERT_EQ(run(reference, k, false), StepStatus::ok);
   }
-  const auto before = lode::testing::export_state_of(h.block());
+  const auto before = lode::testing::export_state_of(h.estimator());
   ASSERT_EQ(run(h, 300, true), StepStatus::ok) << h.block().fault_reason();
   ASSERT_EQ(run(reference, 300, false), StepStatus::ok);
   for (const char* port : {"pose", "velocity", "acceleration", "innovation"}) {
     for (std::size_t i = 0; i < 3; ++i) EXPECT_TRUE(std::isfinite(h.output(port)[i])) << port << i;
   }
   double nu[3], s[3];
-  EXPECT_FALSE(h.block().innovation(nu, s)) << "a cycle with a coasting axis reports no innovation";
+  EXPECT_FALSE(h.estimator().innovation(nu, s)) << "a cycle with a coasting axis reports no innovation";
   EXPECT_EQ(h.output("innovation")[1], 0.0);
   // The other axes updated exactly as without the NaN.
   for (std::size_t i : {std::size_t{0}, std::size_t{2}}) {
@@ -557,7 +557,7 @@ TEST(EstimatorKalmanInvalid, PredictCoastsTheAxisWithANaN) {
     EXPECT_EQ(h.output("innovation")[i], reference.output("innovation")[i]);
   }
   // The y axis: time update only, x^-_{k+1} = Phi x^-_k, and P^- grew.
-  const auto after = lode::testing::export_state_of(h.block());
+  const auto after = lode::testing::export_state_of(h.estimator());
   const double t = kPeriodS;
   const double* x = &before.values[3];
   EXPECT_DOUBLE_EQ(after.values[3], x[0] + t * x[1] + 0.5 * t * t * x[2]);
@@ -568,7 +568,7 @@ TEST(EstimatorKalmanInvalid, PredictCoastsTheAxisWithANaN) {
   EXPECT_TRUE(lode::testing::covariance_usable(after.covariance, 9));
   // Back to valid data: the update resumes and the innovation is reported again.
   ASSERT_EQ(run(h, 301, false), StepStatus::ok);
-  EXPECT_TRUE(h.block().innovation(nu, s));
+  EXPECT_TRUE(h.estimator().innovation(nu, s));
   EXPECT_NE(h.output("innovation")[1], 0.0);
 
   // A non-positive or NaN R from the covariance input coasts too.
@@ -579,11 +579,11 @@ TEST(EstimatorKalmanInvalid, PredictCoastsTheAxisWithANaN) {
   c.input("covariance")[0] = 1e-10;
   c.input("measurement")[0] = 1e-4;
   ASSERT_EQ(c.step(), StepStatus::ok);
-  EXPECT_TRUE(c.block().innovation(nu, s));
+  EXPECT_TRUE(c.estimator().innovation(nu, s));
   for (double bad : {0.0, -1e-10, std::nan("")}) {
     c.input("covariance")[0] = bad;
     EXPECT_EQ(c.step(), StepStatus::ok);
-    EXPECT_FALSE(c.block().innovation(nu, s));
+    EXPECT_FALSE(c.estimator().innovation(nu, s));
     EXPECT_TRUE(std::isfinite(c.output("pose")[0]));
   }
 }
@@ -594,13 +594,13 @@ TEST(EstimatorKalmanInvalid, FaultModeIsTheDefaultAndUnchanged) {
   ASSERT_TRUE(started(h));
   h.input("measurement")[0] = 1e-4;
   ASSERT_EQ(h.step(), StepStatus::ok);
-  const auto before = lode::testing::export_state_of(h.block());
+  const auto before = lode::testing::export_state_of(h.estimator());
   h.input("measurement")[0] = std::nan("");
   EXPECT_EQ(h.step(), StepStatus::fault);
   EXPECT_STREQ(h.block().fault_reason(), "non-finite measurement");
   double nu = 0.0, s = 0.0;
-  EXPECT_FALSE(h.block().innovation(&nu, &s));
-  const auto after = lode::testing::export_state_of(h.block());
+  EXPECT_FALSE(h.estimator().innovation(&nu, &s));
+  const auto after = lode::testing::export_state_of(h.estimator());
   EXPECT_EQ(after.values, before.values) << "a fault leaves the state as it was";
   EXPECT_EQ(after.covariance, before.covariance);
 
@@ -616,7 +616,7 @@ TEST(EstimatorKalmanState, ExportImportInnovationDoNotAllocate) {
     BlockHarness h("estimator.kalman", std::string("motion: ") + motion + "\nq: [100, 100, 1e5]\nr: 1e-10\n", kRateHz);
     h.feed("measurement", kPose);
     ASSERT_TRUE(started(h));
-    const StateLayout layout = h.block().state_layout();
+    const StateLayout layout = h.estimator().state_layout();
     std::vector<double> values(layout.size()), covariance(layout.size() * layout.size());
     const std::vector<std::uint8_t> present(layout.size(), 1);
     double nu[3], s[3];
@@ -625,9 +625,9 @@ TEST(EstimatorKalmanState, ExportImportInnovationDoNotAllocate) {
     for (int k = 0; k < 1000; ++k) {
       y[0] = 1e-4 * std::sin(0.01 * k);
       if (h.step() != StepStatus::ok) FAIL() << h.block().fault_reason();
-      h.block().export_state(values.data(), covariance.data());
-      h.block().import_state(values.data(), covariance.data(), present.data());
-      (void)h.block().innovation(nu, s);
+      h.estimator().export_state(values.data(), covariance.data());
+      h.estimator().import_state(values.data(), covariance.data(), present.data());
+      (void)h.estimator().innovation(nu, s);
     }
     EXPECT_EQ(static_cast<long>(lode::testing::allocation_count()) - before, 0) << motion;
   }

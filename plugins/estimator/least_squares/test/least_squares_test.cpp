@@ -13,8 +13,8 @@
 #include <vector>
 
 #include "estimator/testing/harness_setup.hpp"
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace lode::plugins {
 namespace {

@@ -15,9 +15,9 @@
 #include <random>
 #include <string>
 
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/require.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/require.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace {
 

@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace lode::plugins {
 namespace {
@@ -215,24 +215,24 @@ TEST(FilterBiquadTunables, EnabledIsABoolAndSwitchesBypassAtTheNextStep) {
   h.feed("in", {{"a", "V"}, {"b", "V"}});
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   ASSERT_TRUE(h.activate());
-  const std::vector<Tunable> t = h.block().tunables();
+  const std::vector<Tunable> t = h.tunables().tunables();
   ASSERT_EQ(t.size(), 1u);
   EXPECT_EQ(t[0].name, "enabled");
   EXPECT_EQ(t[0].unit, "bool");
   EXPECT_TRUE(t[0].integer);
   EXPECT_EQ(t[0].min, 0.0);
   EXPECT_EQ(t[0].max, 1.0);
-  EXPECT_EQ(h.block().tunable_value(0), 1.0);
+  EXPECT_EQ(h.tunables().tunable_value(0), 1.0);
   const auto in = h.input("in");
   in[0] = in[1] = 1.0;
   ASSERT_EQ(h.step(), StepStatus::ok);
   EXPECT_LT(h.output("out")[1], 0.01);
   const char* why = "";
-  ASSERT_TRUE(h.block().set_tunable(0, 0.0, why)) << why;
-  EXPECT_EQ(h.block().tunable_value(0), 0.0);
+  ASSERT_TRUE(h.tunables().set_tunable(0, 0.0, why)) << why;
+  EXPECT_EQ(h.tunables().tunable_value(0), 0.0);
   ASSERT_EQ(h.step(), StepStatus::ok);
   EXPECT_EQ(h.output("out")[1], 1.0) << "bypassed: out = in";
-  ASSERT_TRUE(h.block().set_tunable(0, 1.0, why)) << why;
+  ASSERT_TRUE(h.tunables().set_tunable(0, 1.0, why)) << why;
   ASSERT_EQ(h.step(), StepStatus::ok);
   EXPECT_LT(h.output("out")[1], 0.1) << "filtered again from the section's own state";
 }
@@ -243,15 +243,15 @@ TEST(FilterBiquadTunables, RefusedValuesChangeNothing) {
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   ASSERT_TRUE(h.activate());
   const char* why = "";
-  EXPECT_FALSE(h.block().set_tunable(0, 0.5, why));
+  EXPECT_FALSE(h.tunables().set_tunable(0, 0.5, why));
   EXPECT_STRNE(why, "");
   why = "";
-  EXPECT_FALSE(h.block().set_tunable(0, std::nan(""), why));
+  EXPECT_FALSE(h.tunables().set_tunable(0, std::nan(""), why));
   EXPECT_STRNE(why, "");
   why = "";
-  EXPECT_FALSE(h.block().set_tunable(1, 0.0, why));
+  EXPECT_FALSE(h.tunables().set_tunable(1, 0.0, why));
   EXPECT_STRNE(why, "");
-  EXPECT_EQ(h.block().tunable_value(0), 1.0);
+  EXPECT_EQ(h.tunables().tunable_value(0), 1.0);
   h.input("in")[0] = 1.0;
   ASSERT_EQ(h.step(), StepStatus::ok);
   EXPECT_LT(h.output("out")[0], 0.01) << "still filtering";
@@ -263,7 +263,7 @@ TEST(FilterBiquadTunables, SetTunableAllocatesNothing) {
   h.feed("in", {{"x", "m"}, {"y", "m"}});
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   ASSERT_TRUE(h.activate());
-  Block& block = h.block();
+  Tunables& block = h.tunables();
   const auto in = h.input("in");
   const char* why = "";
   int accepted = 0;

@@ -14,9 +14,9 @@
 #include <string>
 #include <vector>
 
-#include "lode/math/discretize.hpp"
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/math/discretize.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace lode::plugins {
 namespace {
@@ -297,7 +297,7 @@ TEST(FilterNotchTunables, DesignedNotchOffersEnabledFrequencyKAndZeta) {
   BlockHarness h("filter.notch", "f_notch_hz: 50\nk: 0.1\nzeta: 0.5\nchannels: [x, y]\n", 800.0);
   h.feed("in", kPlanar);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
-  const std::vector<Tunable> t = h.block().tunables();
+  const std::vector<Tunable> t = h.tunables().tunables();
   ASSERT_EQ(t.size(), 4u);
   EXPECT_EQ(t[0].name, "enabled");
   EXPECT_EQ(t[0].unit, "bool");
@@ -310,17 +310,17 @@ TEST(FilterNotchTunables, DesignedNotchOffersEnabledFrequencyKAndZeta) {
   EXPECT_EQ(t[1].max, 400.0);
   EXPECT_EQ(t[2].name, "k");
   EXPECT_EQ(t[3].name, "zeta");
-  EXPECT_EQ(h.block().tunable_value(0), 1.0);
-  EXPECT_EQ(h.block().tunable_value(1), 50.0);
-  EXPECT_EQ(h.block().tunable_value(2), 0.1);
-  EXPECT_EQ(h.block().tunable_value(3), 0.5);
+  EXPECT_EQ(h.tunables().tunable_value(0), 1.0);
+  EXPECT_EQ(h.tunables().tunable_value(1), 50.0);
+  EXPECT_EQ(h.tunables().tunable_value(2), 0.1);
+  EXPECT_EQ(h.tunables().tunable_value(3), 0.5);
 
   BlockHarness raw("filter.notch", "coefficients: [0.09318, -0.1733, 0.09318, -1.792, 0.8047]\n", 800.0);
   raw.feed("in", kPlanar);
   ASSERT_TRUE(raw.configure()) << raw.diagnostics();
-  ASSERT_EQ(raw.block().tunables().size(), 1u) << "raw coefficients: only enabled";
+  ASSERT_EQ(raw.tunables().tunables().size(), 1u) << "raw coefficients: only enabled";
   const char* why = "";
-  EXPECT_FALSE(raw.block().set_tunable(1, 60.0, why));
+  EXPECT_FALSE(raw.tunables().set_tunable(1, 60.0, why));
   EXPECT_NE(std::string(why).find("raw coefficients"), std::string::npos) << why;
 }
 
@@ -368,8 +368,8 @@ TEST(FilterNotchTunables, RetuneTakesEffectAtTheNextStepFromTheSignalHistory) {
   const std::vector<double> before(y.end() - 800, y.end());
   const double line_before = std::abs(component(before, 60, fs));
   const char* why = "";
-  ASSERT_TRUE(h.block().set_tunable(1, 60.0, why)) << why;
-  EXPECT_EQ(h.block().tunable_value(1), 60.0);
+  ASSERT_TRUE(h.tunables().set_tunable(1, 60.0, why)) << why;
+  EXPECT_EQ(h.tunables().tunable_value(1), 60.0);
   const Json described = h.describe();
   const Json& c = member(described, "channels").elements().at(0);
   const std::vector<double> b = numbers_of(member(c, "b"));
@@ -406,9 +406,9 @@ TEST(FilterNotchTunables, RetuningAtDcHasNoTransient) {
   for (int k = 0; k < 4000; ++k) h.step();
   ASSERT_NEAR(h.output("out")[0], 3e-3, 1e-15);
   const char* why = "";
-  ASSERT_TRUE(h.block().set_tunable(1, 120.0, why)) << why;
-  ASSERT_TRUE(h.block().set_tunable(3, 0.2, why)) << why;
-  ASSERT_TRUE(h.block().set_tunable(2, 0.3, why)) << why;
+  ASSERT_TRUE(h.tunables().set_tunable(1, 120.0, why)) << why;
+  ASSERT_TRUE(h.tunables().set_tunable(3, 0.2, why)) << why;
+  ASSERT_TRUE(h.tunables().set_tunable(2, 0.3, why)) << why;
   double worst = 0.0;
   for (int k = 0; k < 2000; ++k) {
     h.step();
@@ -430,16 +430,16 @@ TEST(FilterNotchTunables, RefusedValuesChangeNothing) {
   for (int k = 0; k < 1000; ++k) {
     if (k == 300) {
       const char* why = "";
-      EXPECT_FALSE(h.block().set_tunable(1, 400.0, why)) << "Nyquist at 800 Hz";
+      EXPECT_FALSE(h.tunables().set_tunable(1, 400.0, why)) << "Nyquist at 800 Hz";
       EXPECT_NE(std::string(why).find("Nyquist"), std::string::npos) << why;
-      EXPECT_FALSE(h.block().set_tunable(1, 0.0, why));
-      EXPECT_FALSE(h.block().set_tunable(2, 0.0, why));
-      EXPECT_FALSE(h.block().set_tunable(3, -1.0, why));
-      EXPECT_FALSE(h.block().set_tunable(1, std::nan(""), why));
-      EXPECT_FALSE(h.block().set_tunable(0, 0.5, why));
-      EXPECT_FALSE(h.block().set_tunable(4, 1.0, why));
-      EXPECT_EQ(h.block().tunable_value(1), 50.0);
-      EXPECT_EQ(h.block().tunable_value(0), 1.0);
+      EXPECT_FALSE(h.tunables().set_tunable(1, 0.0, why));
+      EXPECT_FALSE(h.tunables().set_tunable(2, 0.0, why));
+      EXPECT_FALSE(h.tunables().set_tunable(3, -1.0, why));
+      EXPECT_FALSE(h.tunables().set_tunable(1, std::nan(""), why));
+      EXPECT_FALSE(h.tunables().set_tunable(0, 0.5, why));
+      EXPECT_FALSE(h.tunables().set_tunable(4, 1.0, why));
+      EXPECT_EQ(h.tunables().tunable_value(1), 50.0);
+      EXPECT_EQ(h.tunables().tunable_value(0), 1.0);
     }
     h.input("in")[0] = twin.input("in")[0] = std::sin(0.37 * k);
     h.step();
@@ -454,12 +454,12 @@ TEST(FilterNotchTunables, EnabledSwitchesBypass) {
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   ASSERT_TRUE(h.activate());
   const char* why = "";
-  ASSERT_TRUE(h.block().set_tunable(0, 0.0, why)) << why;
-  EXPECT_EQ(h.block().tunable_value(0), 0.0);
+  ASSERT_TRUE(h.tunables().set_tunable(0, 0.0, why)) << why;
+  EXPECT_EQ(h.tunables().tunable_value(0), 0.0);
   h.input("in")[0] = 1.0;
   h.step();
   EXPECT_EQ(h.output("out")[0], 1.0) << "bypassed: out = in";
-  ASSERT_TRUE(h.block().set_tunable(0, 1.0, why)) << why;
+  ASSERT_TRUE(h.tunables().set_tunable(0, 1.0, why)) << why;
   h.step();
   EXPECT_NE(h.output("out")[0], 1.0) << "filtering again (a unit step is still settling)";
 }
@@ -470,7 +470,7 @@ TEST(FilterNotchTunables, SetTunableAllocatesNothing) {
   h.feed("in", kPlanar);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   ASSERT_TRUE(h.activate());
-  Block& block = h.block();
+  Tunables& block = h.tunables();
   const auto in = h.input("in");
   const char* why = "";
   int accepted = 0;

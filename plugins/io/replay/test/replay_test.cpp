@@ -13,8 +13,8 @@
 #include <unistd.h>
 
 #include "lode/record/hdf5_recorder.hpp"
-#include "lode/testing/harness.hpp"
-#include "lode/testing/scratch_dir.hpp"
+#include "lode/sdk/testing/harness.hpp"
+#include "lode/sdk/testing/scratch_dir.hpp"
 
 namespace {
 

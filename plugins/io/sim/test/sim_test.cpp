@@ -21,9 +21,9 @@
 
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/require.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/require.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 
 namespace {
@@ -654,7 +654,7 @@ TEST(IoSimInject, TunableInjectsLiveAndTurnsOff) {
   Board injected("seed: 5\n");
   Board reference("seed: 5\n");
   ASSERT_TRUE(injected.ok && reference.ok) << injected.why;
-  lode::Block& block = injected.h.block();
+  lode::Tunables& block = injected.h.tunables();
   const std::vector<lode::Tunable> tunables = block.tunables();
   ASSERT_EQ(tunables.size(), 1u);
   EXPECT_EQ(tunables[0].name, "inject_nan_channel");
@@ -809,8 +809,8 @@ TEST(IoSimInject, InjectionDoesNotAllocate) {
   const char* why = "";
   const long before = static_cast<long>(lode::testing::allocation_count());
   for (int k = 0; k < 4000; ++k) {
-    if (k == 100) (void)b.h.block().set_tunable(0, 0.0, why);
-    if (k == 3000) (void)b.h.block().set_tunable(0, -1.0, why);
+    if (k == 100) (void)b.h.tunables().set_tunable(0, 0.0, why);
+    if (k == 3000) (void)b.h.tunables().set_tunable(0, -1.0, why);
     b.h.step();
     b.h.write();
   }

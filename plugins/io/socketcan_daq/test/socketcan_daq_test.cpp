@@ -20,8 +20,8 @@
 #include <thread>
 #include <vector>
 
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace {
 
@@ -111,7 +111,7 @@ struct Rig {
   /// One cycle with these commands; the fault reason, or "".
   std::string cycle(double fx, double fy) {
     if (h->step() != StepStatus::ok) {
-      h->block().drive_safe();  // what the pipeline does on a fault
+      h->board().drive_safe();  // what the pipeline does on a fault
       return h->block().fault_reason();
     }
     h->input("command")[0] = fx;

@@ -21,8 +21,8 @@
 #include <vector>
 
 #include "lode/hal/analog.hpp"
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace {
 
@@ -143,7 +143,7 @@ Trip run_until_fault(Rig& rig, int max_cycles = 100) {
     const StepStatus s = rig.h.step();
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     if (s != StepStatus::ok) {
-      rig.h.block().drive_safe();  // what the pipeline does on a fault
+      rig.h.board().drive_safe();  // what the pipeline does on a fault
       return {rig.h.block().fault_reason(), ms};
     }
     if (rig.h.write() != StepStatus::ok) return {rig.h.block().fault_reason(), 0.0};
@@ -188,7 +188,7 @@ TEST(VmePentekFaults, ASilentBoardTripsTheTriggerTimeoutWhenNoDacLoadIsPending) 
   EXPECT_NE(std::string(rig.h.block().fault_reason()).find("did not take the trigger"), std::string::npos);
   EXPECT_GE(ms, 20.0);
   EXPECT_LT(ms, 500.0);  // loose: a shared machine may preempt the test thread
-  rig.h.block().drive_safe();
+  rig.h.board().drive_safe();
   expect_outputs_safe(rig);
 }
 

@@ -9,7 +9,7 @@
 #include <numbers>
 #include <string>
 
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace {
 

@@ -13,8 +13,8 @@
 #include <filesystem>
 #include <string>
 
-#include "lode/testing/harness.hpp"
-#include "lode/testing/require.hpp"
+#include "lode/sdk/testing/harness.hpp"
+#include "lode/sdk/testing/require.hpp"
 
 namespace {
 

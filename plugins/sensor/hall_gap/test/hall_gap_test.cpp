@@ -12,8 +12,8 @@
 #include <memory>
 #include <string>
 
-#include "lode/testing/harness.hpp"
-#include "lode/testing/require.hpp"
+#include "lode/sdk/testing/harness.hpp"
+#include "lode/sdk/testing/require.hpp"
 
 namespace {
 

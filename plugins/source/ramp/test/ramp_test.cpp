@@ -7,8 +7,8 @@
 #include <limits>
 #include <string>
 
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace {
 
@@ -92,7 +92,7 @@ TEST(SourceRamp, DescribeGivesTheFinalValue) {
 
 /// set_tunable() (accepted and refused) and step() together allocate nothing.
 void expect_no_allocation(BlockHarness& h, std::size_t index, double a, double b) {
-  lode::Block& block = h.block();
+  lode::Tunables& block = h.tunables();
   const char* why = "";
   int accepted = 0;
   const auto before = lode::testing::allocation_count();
@@ -111,7 +111,7 @@ void expect_no_allocation(BlockHarness& h, std::size_t index, double a, double b
 TEST(SourceRampTunables, OffsetAndRatePerElement) {
   BlockHarness h("source.ramp", "names: [x, theta_z]\nunits: [m, rad]\nrate: [1e-3, 2e-3]\n", 1000.0);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
-  const auto t = h.block().tunables();
+  const auto t = h.tunables().tunables();
   ASSERT_EQ(t.size(), 4u);
   EXPECT_EQ(t[0].name, "offset.x");
   EXPECT_EQ(t[0].unit, "m");
@@ -120,7 +120,7 @@ TEST(SourceRampTunables, OffsetAndRatePerElement) {
   EXPECT_EQ(t[2].unit, "m/s");
   EXPECT_EQ(t[3].name, "rate.theta_z");
   EXPECT_EQ(t[3].unit, "rad/s");
-  EXPECT_DOUBLE_EQ(h.block().tunable_value(3), 2e-3);
+  EXPECT_DOUBLE_EQ(h.tunables().tunable_value(3), 2e-3);
 }
 
 TEST(SourceRampTunables, NewRateBendsTheRampWithoutAJump) {
@@ -130,7 +130,7 @@ TEST(SourceRampTunables, NewRateBendsTheRampWithoutAJump) {
   run_to(h, 99);
   EXPECT_NEAR(h.output("out")[0], 99e-6, 1e-18);
   const char* why = "";
-  ASSERT_TRUE(h.block().set_tunable(1, -2e-3, why)) << why;  // rate.x
+  ASSERT_TRUE(h.tunables().set_tunable(1, -2e-3, why)) << why;  // rate.x
   h.step();  // cycle 100: continues from 99 um with the new slope
   EXPECT_NEAR(h.output("out")[0], 99e-6 - 2e-6, 1e-18);
   run_to(h, 200);
@@ -139,7 +139,7 @@ TEST(SourceRampTunables, NewRateBendsTheRampWithoutAJump) {
   EXPECT_NEAR(h.output("out")[0], 99e-6 - 2e-3 * 0.201, 1e-18);
   EXPECT_NEAR(h.describe().find("final_value")->elements().at(0).as_number(), 99e-6 - 2e-3 * 0.201, 1e-18);
   // A new offset shifts the whole path from the next sample.
-  ASSERT_TRUE(h.block().set_tunable(0, 1e-3, why)) << why;
+  ASSERT_TRUE(h.tunables().set_tunable(0, 1e-3, why)) << why;
   h.step();
   EXPECT_NEAR(h.output("out")[0], 1e-3 + 99e-6 - 2e-3 * 0.201, 1e-18);
 }
@@ -154,10 +154,10 @@ TEST(SourceRampTunables, RefusedValuesChangeNothing) {
   for (int k = 0; k < 300; ++k) {
     if (k == 100) {
       const char* why = "";
-      EXPECT_FALSE(h.block().set_tunable(1, std::numeric_limits<double>::infinity(), why));
+      EXPECT_FALSE(h.tunables().set_tunable(1, std::numeric_limits<double>::infinity(), why));
       EXPECT_STRNE(why, "");
-      EXPECT_FALSE(h.block().set_tunable(2, 1.0, why));
-      EXPECT_DOUBLE_EQ(h.block().tunable_value(1), 1e-3);
+      EXPECT_FALSE(h.tunables().set_tunable(2, 1.0, why));
+      EXPECT_DOUBLE_EQ(h.tunables().tunable_value(1), 1e-3);
     }
     h.step();
     twin.step();

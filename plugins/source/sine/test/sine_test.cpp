@@ -7,8 +7,8 @@
 #include <numbers>
 #include <string>
 
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace {
 
@@ -79,7 +79,7 @@ phase_rad: [0])",
 
 /// set_tunable() (accepted and refused) and step() together allocate nothing.
 void expect_no_allocation(BlockHarness& h, std::size_t index, double a, double b) {
-  lode::Block& block = h.block();
+  lode::Tunables& block = h.tunables();
   const char* why = "";
   int accepted = 0;
   const auto before = lode::testing::allocation_count();
@@ -98,7 +98,7 @@ void expect_no_allocation(BlockHarness& h, std::size_t index, double a, double b
 TEST(SourceSineTunables, OffsetAmplitudeAndFrequencyUpToNyquist) {
   BlockHarness h("source.sine", "names: [x]\nunits: [m]\namplitude: [1e-4]\nfrequency_hz: [10]\n", kRateHz);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
-  const auto t = h.block().tunables();
+  const auto t = h.tunables().tunables();
   ASSERT_EQ(t.size(), 3u);
   EXPECT_EQ(t[0].name, "offset.x");
   EXPECT_EQ(t[0].unit, "m");
@@ -108,7 +108,7 @@ TEST(SourceSineTunables, OffsetAmplitudeAndFrequencyUpToNyquist) {
   EXPECT_EQ(t[2].unit, "Hz");
   EXPECT_EQ(t[2].min, 0.0);
   EXPECT_EQ(t[2].max, 500.0);
-  EXPECT_DOUBLE_EQ(h.block().tunable_value(2), 10.0);
+  EXPECT_DOUBLE_EQ(h.tunables().tunable_value(2), 10.0);
 }
 
 TEST(SourceSineTunables, NewFrequencyKeepsThePhaseOfTheLastSample) {
@@ -120,14 +120,14 @@ TEST(SourceSineTunables, NewFrequencyKeepsThePhaseOfTheLastSample) {
   // 10 Hz for 0.123 s: 1.23 cycles.
   EXPECT_NEAR(h.output("out")[0], std::sin(2 * std::numbers::pi * 0.23), 1e-12);
   const char* why = "";
-  ASSERT_TRUE(h.block().set_tunable(2, 25.0, why)) << why;
+  ASSERT_TRUE(h.tunables().set_tunable(2, 25.0, why)) << why;
   h.step();  // one ms at 25 Hz from phase 0.23 cycles (not sin(2 pi 25 * 0.124): no phase jump)
   EXPECT_NEAR(h.output("out")[0], std::sin(2 * std::numbers::pi * (0.23 + 0.025)), 1e-12);
   while (h.tick().cycle < 200) h.step();
   EXPECT_NEAR(h.output("out")[0], std::sin(2 * std::numbers::pi * (0.23 + 25 * 0.077)), 1e-12);
   // Amplitude and offset: the next sample is the new offset + new amplitude * sin(phase).
-  ASSERT_TRUE(h.block().set_tunable(1, 3.0, why)) << why;
-  ASSERT_TRUE(h.block().set_tunable(0, -0.5, why)) << why;
+  ASSERT_TRUE(h.tunables().set_tunable(1, 3.0, why)) << why;
+  ASSERT_TRUE(h.tunables().set_tunable(0, -0.5, why)) << why;
   h.step();
   EXPECT_NEAR(h.output("out")[0], -0.5 + 3.0 * std::sin(2 * std::numbers::pi * (0.23 + 25 * 0.078)), 1e-12);
 }
@@ -143,12 +143,12 @@ TEST(SourceSineTunables, RefusedValuesChangeNothing) {
   for (int k = 0; k < 300; ++k) {
     if (k == 100) {
       const char* why = "";
-      EXPECT_FALSE(h.block().set_tunable(2, 600.0, why)) << "above Nyquist (500 Hz)";
+      EXPECT_FALSE(h.tunables().set_tunable(2, 600.0, why)) << "above Nyquist (500 Hz)";
       EXPECT_NE(std::string(why).find("Nyquist"), std::string::npos) << why;
-      EXPECT_FALSE(h.block().set_tunable(2, -1.0, why));
-      EXPECT_FALSE(h.block().set_tunable(1, std::nan(""), why));
-      EXPECT_FALSE(h.block().set_tunable(3, 1.0, why));
-      EXPECT_DOUBLE_EQ(h.block().tunable_value(2), 10.0);
+      EXPECT_FALSE(h.tunables().set_tunable(2, -1.0, why));
+      EXPECT_FALSE(h.tunables().set_tunable(1, std::nan(""), why));
+      EXPECT_FALSE(h.tunables().set_tunable(3, 1.0, why));
+      EXPECT_DOUBLE_EQ(h.tunables().tunable_value(2), 10.0);
     }
     h.step();
     twin.step();

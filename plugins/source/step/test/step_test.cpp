@@ -6,8 +6,8 @@
 #include <cmath>
 #include <string>
 
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace {
 
@@ -135,7 +135,7 @@ TEST(SourceStep, DescribeListsTheSteps) {
 
 /// set_tunable() (accepted and refused) and step() together allocate nothing.
 void expect_no_allocation(BlockHarness& h, std::size_t index, double a, double b) {
-  lode::Block& block = h.block();
+  lode::Tunables& block = h.tunables();
   const char* why = "";
   int accepted = 0;
   const auto before = lode::testing::allocation_count();
@@ -155,7 +155,7 @@ TEST(SourceStepTunables, OffsetPerElementWithItsUnit) {
   BlockHarness h("source.step", "names: [x, theta_z]\nunits: [m, rad]\noffset: [1e-3, 0]\n"
                                 "steps: [{time_s: 0.5, value: [2e-3, 1e-3]}]\n", 1000.0);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
-  const auto t = h.block().tunables();
+  const auto t = h.tunables().tunables();
   ASSERT_EQ(t.size(), 2u);
   EXPECT_EQ(t[0].name, "offset.x");
   EXPECT_EQ(t[0].unit, "m");
@@ -164,7 +164,7 @@ TEST(SourceStepTunables, OffsetPerElementWithItsUnit) {
   EXPECT_FALSE(t[0].integer);
   EXPECT_LE(t[0].min, -1e300);
   EXPECT_GE(t[0].max, 1e300);
-  EXPECT_DOUBLE_EQ(h.block().tunable_value(0), 1e-3);
+  EXPECT_DOUBLE_EQ(h.tunables().tunable_value(0), 1e-3);
 }
 
 TEST(SourceStepTunables, NewOffsetAppliesFromTheNextSampleAndRefusalsChangeNothing) {
@@ -175,19 +175,19 @@ TEST(SourceStepTunables, NewOffsetAppliesFromTheNextSampleAndRefusalsChangeNothi
   for (int k = 0; k < 10; ++k) h.step();
   EXPECT_EQ(h.output("out")[0], 1e-3);
   const char* why = "";
-  ASSERT_TRUE(h.block().set_tunable(0, -4e-3, why)) << why;
+  ASSERT_TRUE(h.tunables().set_tunable(0, -4e-3, why)) << why;
   EXPECT_EQ(h.output("out")[0], 1e-3) << "nothing changes before the next step";
   h.step();
   EXPECT_EQ(h.output("out")[0], -4e-3);
   EXPECT_EQ(h.output("out")[1], 0.0);
-  EXPECT_FALSE(h.block().set_tunable(1, std::nan(""), why));
+  EXPECT_FALSE(h.tunables().set_tunable(1, std::nan(""), why));
   EXPECT_STRNE(why, "");
   why = "";
-  EXPECT_FALSE(h.block().set_tunable(2, 1.0, why));
+  EXPECT_FALSE(h.tunables().set_tunable(2, 1.0, why));
   EXPECT_STRNE(why, "");
   h.step();
   EXPECT_EQ(h.output("out")[1], 0.0);
-  EXPECT_EQ(h.block().tunable_value(1), 0.0);
+  EXPECT_EQ(h.tunables().tunable_value(1), 0.0);
   while (h.tick().cycle < 500) h.step();
   EXPECT_EQ(h.output("out")[0], 2e-3) << "the steps' absolute values are not offset";
 }

@@ -7,8 +7,8 @@
 #include <cmath>
 #include <string>
 
-#include "lode/testing/allocation_counter.hpp"
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/allocation_counter.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace {
 
@@ -129,7 +129,7 @@ TEST(SourceZigzag, DescribeGivesTheEnd) {
 
 /// set_tunable() (accepted and refused) and step() together allocate nothing.
 void expect_no_allocation(BlockHarness& h, std::size_t index, double a, double b) {
-  lode::Block& block = h.block();
+  lode::Tunables& block = h.tunables();
   const char* why = "";
   int accepted = 0;
   const auto before = lode::testing::allocation_count();
@@ -149,14 +149,14 @@ TEST(SourceZigzagTunables, OffsetAndAmplitudePerElement) {
   BlockHarness h("source.zigzag", "names: [x, y]\nunits: [m, m]\namplitude: [1e-3, 0]\nadvance: [0, 1e-4]\n"
                                   "period_s: 1\n", 1000.0);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
-  const auto t = h.block().tunables();
+  const auto t = h.tunables().tunables();
   ASSERT_EQ(t.size(), 4u);
   EXPECT_EQ(t[0].name, "offset.x");
   EXPECT_EQ(t[1].name, "offset.y");
   EXPECT_EQ(t[2].name, "amplitude.x");
   EXPECT_EQ(t[3].name, "amplitude.y");
   EXPECT_EQ(t[2].unit, "m");
-  EXPECT_DOUBLE_EQ(h.block().tunable_value(2), 1e-3);
+  EXPECT_DOUBLE_EQ(h.tunables().tunable_value(2), 1e-3);
 }
 
 TEST(SourceZigzagTunables, NewAmplitudeAndOffsetApplyFromTheNextSample) {
@@ -168,18 +168,18 @@ TEST(SourceZigzagTunables, NewAmplitudeAndOffsetApplyFromTheNextSample) {
   while (h.tick().cycle < 250) h.step();
   EXPECT_NEAR(h.output("out")[0], 0.5e-3, 1e-15);  // half way up the first sweep
   const char* why = "";
-  ASSERT_TRUE(h.block().set_tunable(2, 2e-3, why)) << why;
+  ASSERT_TRUE(h.tunables().set_tunable(2, 2e-3, why)) << why;
   h.step();
   EXPECT_NEAR(h.output("out")[0], 2e-3 * 0.502, 1e-15);
-  ASSERT_TRUE(h.block().set_tunable(1, 5e-3, why)) << why;  // offset.y
+  ASSERT_TRUE(h.tunables().set_tunable(1, 5e-3, why)) << why;  // offset.y
   h.step();
   EXPECT_NEAR(h.output("out")[1], 5e-3 + 1e-4 * 0.504, 1e-15);
-  EXPECT_FALSE(h.block().set_tunable(0, std::nan(""), why));
+  EXPECT_FALSE(h.tunables().set_tunable(0, std::nan(""), why));
   EXPECT_STRNE(why, "");
-  EXPECT_FALSE(h.block().set_tunable(4, 0.0, why));
+  EXPECT_FALSE(h.tunables().set_tunable(4, 0.0, why));
   h.step();
   EXPECT_NEAR(h.output("out")[0], 2e-3 * 0.506, 1e-15) << "refused values changed nothing";
-  EXPECT_DOUBLE_EQ(h.block().tunable_value(0), 0.0);
+  EXPECT_DOUBLE_EQ(h.tunables().tunable_value(0), 0.0);
 }
 
 TEST(SourceZigzagTunables, SetTunableAllocatesNothing) {

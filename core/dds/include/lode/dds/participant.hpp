@@ -5,7 +5,7 @@
 #include <optional>
 #include <string>
 
-#include "lode/status.hpp"
+#include "lode/sdk/status.hpp"
 #include "lode/telemetry.hpp"
 
 namespace eprosima::fastdds::dds {

@@ -21,7 +21,7 @@
 #include <string>
 #include <vector>
 
-#include "lode/status.hpp"
+#include "lode/sdk/status.hpp"
 
 namespace lode::record {
 

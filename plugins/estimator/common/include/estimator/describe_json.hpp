@@ -5,7 +5,7 @@
 #include <Eigen/Core>
 #include <vector>
 
-#include "lode/json.hpp"
+#include "lode/sdk/json.hpp"
 
 namespace lode::plugins::estimator {
 

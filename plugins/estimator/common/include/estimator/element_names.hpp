@@ -4,7 +4,7 @@
 
 #include <string>
 
-#include "lode/port.hpp"
+#include "lode/sdk/port.hpp"
 
 namespace lode::plugins::estimator {
 

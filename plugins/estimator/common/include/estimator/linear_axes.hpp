@@ -23,7 +23,7 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "lode/block.hpp"
+#include "lode/sdk/block.hpp"
 
 namespace lode::plugins::estimator {
 

@@ -7,8 +7,8 @@
 #include <string_view>
 #include <vector>
 
-#include "lode/params.hpp"
-#include "lode/port.hpp"
+#include "lode/sdk/params.hpp"
+#include "lode/sdk/port.hpp"
 
 namespace lode::plugins::nonlinear {
 

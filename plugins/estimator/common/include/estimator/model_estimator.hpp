@@ -29,7 +29,8 @@
 #include <string>
 #include <vector>
 
-#include "lode/block.hpp"
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/estimator_state.hpp"
 
 namespace lode::plugins::nonlinear {
 
@@ -59,7 +60,7 @@ struct ElementSource {
 
 /// The common block: models, noise, initial condition, ports, wiring, outputs.
 /// Subclasses provide the algorithm (filter_cycle) and its own parameters.
-class ModelEstimator : public Block {
+class ModelEstimator : public Block, public EstimatorState {
  public:
   Status configure(ConfigureContext& ctx) final;
   Status activate() final;
@@ -180,10 +181,10 @@ class ModelEstimator : public Block {
       {"p0", "list<number>", nullptr, "P_0: 1, n (diagonal) or n*n numbers, positive definite (eq. 19)"}
 
 #define LODE_MODEL_ESTIMATOR_PORT_DOCS                                                                         \
-  {"measurement", "in", "the measurement model's channels, taken by name (e.g. hall_direct.gap: gap [m])"},   \
-      {"input", "in", "the process inputs held over the last period, by name (e.g. stage.truth: coil_voltage)"}, \
-      {"state", "out", "x_{k|k}, the process model's state elements"},                                        \
-      {"std", "out", "sqrt(diag P_{k|k}), same names and units as the state"},                                \
-      {"innovation", "out", "y_k - h(x_{k|k-1}), the measurement channels"}
+  {"measurement", PortDirection::in, "the measurement model's channels, taken by name (e.g. hall_direct.gap: gap [m])"},   \
+      {"input", PortDirection::in, "the process inputs held over the last period, by name (e.g. stage.truth: coil_voltage)"}, \
+      {"state", PortDirection::out, "x_{k|k}, the process model's state elements"},                                        \
+      {"std", PortDirection::out, "sqrt(diag P_{k|k}), same names and units as the state"},                                \
+      {"innovation", PortDirection::out, "y_k - h(x_{k|k-1}), the measurement channels"}
 
 }  // namespace lode::plugins::nonlinear

@@ -5,7 +5,7 @@
 #include <string_view>
 #include <vector>
 
-#include "lode/params.hpp"
+#include "lode/sdk/params.hpp"
 
 namespace lode::plugins::estimator {
 

@@ -6,7 +6,7 @@
 #include <cstddef>
 #include <vector>
 
-#include "lode/params.hpp"
+#include "lode/sdk/params.hpp"
 
 namespace lode::plugins::estimator {
 

@@ -15,7 +15,7 @@
 #include <span>
 #include <vector>
 
-#include "lode/testing/harness.hpp"
+#include "lode/sdk/testing/harness.hpp"
 
 namespace lode::estimator_testing {
 
@@ -58,7 +58,7 @@ inline double mean_nis(lode::testing::BlockHarness& h, std::span<double> measure
       return std::numeric_limits<double>::quiet_NaN();
     }
     double nu[kMaxAxes], s[kMaxAxes];
-    if (!h.block().innovation(nu, s)) {
+    if (!h.estimator().innovation(nu, s)) {
       ADD_FAILURE() << "no innovation after step " << k;
       return std::numeric_limits<double>::quiet_NaN();
     }

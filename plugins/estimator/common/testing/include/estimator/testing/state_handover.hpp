@@ -10,8 +10,8 @@
 #include <string>
 #include <vector>
 
-#include "lode/testing/harness.hpp"
-#include "lode/testing/state_export.hpp"
+#include "lode/sdk/testing/harness.hpp"
+#include "lode/sdk/testing/state_export.hpp"
 
 namespace lode::estimator_testing {
 
