@@ -1,6 +1,9 @@
 # lode_add_plugin(NAME <kind.name> SOURCES <files...> [TESTS <files...>] [LIBS <targets...>]
 #                 [TEST_LIBS <targets...>])
 #
+# LIBS are linked by the plugin and its tests (e.g. its family's shared code, built from
+# plugins/<kind>/common), TEST_LIBS by its tests alone (test helpers).
+#
 # Builds:
 #   lode_<id>_obj   object library with the plugin's code (tests link it to reach internals)
 #   lode-<NAME>.so  the loadable module in ${LODE_BUILD_PLUGIN_DIR}, installed next to the

@@ -1,11 +1,11 @@
 #include "arctan_encoder.hpp"
 
 #include <cmath>
-#include <cstdio>
 #include <numbers>
 #include <string>
 
 #include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins {
 
@@ -79,12 +79,6 @@ void Decoder::update(double theta_rad) noexcept {
 
 namespace {
 
-std::string text_of(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%g", value);
-  return buffer;
-}
-
 }  // namespace
 
 Status ArctanEncoder::configure(ConfigureContext& ctx) {
@@ -96,9 +90,9 @@ Status ArctanEncoder::configure(ConfigureContext& ctx) {
   initial_position_m_ = params.number("initial_position_m", 0.0);
 
   params.check(std::isfinite(pitch_m_) && pitch_m_ > 0.0, "pitch_m",
-               "the scale period must be > 0 m (Table 1: 4e-6), got " + text_of(pitch_m_));
+               "the scale period must be > 0 m (Table 1: 4e-6), got " + number_text(pitch_m_));
   params.check(std::isfinite(initial_position_m_), "initial_position_m",
-               "must be finite, got " + text_of(initial_position_m_));
+               "must be finite, got " + number_text(initial_position_m_));
 
   ctx.declare_input(signals_, "signals", {{"sin", "V"}, {"cos", "V"}});
   ctx.declare_output(estimate_, "estimate", {{"x", "m"}, {"v", "m/s"}});

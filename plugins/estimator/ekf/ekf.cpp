@@ -1,5 +1,6 @@
 #include "ekf.hpp"
 
+#include <Eigen/Cholesky>
 #include <array>
 #include <string>
 

@@ -25,7 +25,7 @@
 // (fixed-capacity Eigen storage: no allocation).
 #pragma once
 
-#include "../nonlinear_common/model_estimator.hpp"
+#include "estimator/model_estimator.hpp"
 
 namespace lode::plugins {
 

@@ -4,11 +4,12 @@
 #include <Eigen/Eigenvalues>
 #include <cmath>
 #include <complex>
-#include <cstdio>
 #include <numbers>
 #include <string>
 
+#include "estimator/describe_json.hpp"
 #include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
 #include "lode/sdk/units.hpp"
 
 namespace lode::plugins {
@@ -226,23 +227,7 @@ namespace {
 
 using ekf_encoder::StateMatrix;
 using ekf_encoder::StateVector;
-
-std::string text_of(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%g", value);
-  return buffer;
-}
-
-template <typename Derived>
-Json matrix_json(const Eigen::MatrixBase<Derived>& m) {
-  Json rows = Json::array();
-  for (Eigen::Index i = 0; i < m.rows(); ++i) {
-    std::vector<double> row;
-    for (Eigen::Index j = 0; j < m.cols(); ++j) row.push_back(m(i, j));
-    rows.push(Json(row));
-  }
-  return rows;
-}
+using estimator::matrix_json;
 
 std::vector<double> sqrt_diagonal(const StateMatrix& p) {
   return {std::sqrt(p(0, 0)), std::sqrt(p(1, 1)), std::sqrt(p(2, 2))};
@@ -266,15 +251,15 @@ Status EkfEncoder::configure(ConfigureContext& ctx) {
   initial_position_m_ = params.number("initial_position_m", 0.0);
 
   params.check(std::isfinite(alpha_rad_s_) && alpha_rad_s_ > 0.0, "acceleration_pole_rad_s",
-               "alpha must be > 0 rad/s (Table 1: 200 pi), got " + text_of(alpha_rad_s_));
+               "alpha must be > 0 rad/s (Table 1: 200 pi), got " + number_text(alpha_rad_s_));
   params.check(std::isfinite(acceleration_variance_) && acceleration_variance_ >= 0.0,
                "acceleration_variance_m2_s4",
-               "sigma_m^2 must be >= 0 (Table 1: 1e-5), got " + text_of(acceleration_variance_));
+               "sigma_m^2 must be >= 0 (Table 1: 1e-5), got " + number_text(acceleration_variance_));
   const char* std_keys[] = {"initial_position_std_m", "initial_velocity_std_m_s",
                             "initial_acceleration_std_m_s2"};
   for (int i = 0; i < ekf_encoder::kStateSize; ++i) {
     params.check(std::isfinite(initial_std_(i)) && initial_std_(i) > 0.0, std_keys[i],
-                 "P(0) must be positive definite: give a std > 0, got " + text_of(initial_std_(i)));
+                 "P(0) must be positive definite: give a std > 0, got " + number_text(initial_std_(i)));
   }
   params.check(std::isfinite(initial_position_m_), "initial_position_m", "must be finite");
 
@@ -306,7 +291,7 @@ Status EkfEncoder::configure(ConfigureContext& ctx) {
   }
   for (double s : noise_std_v_) {
     if (!(s > 0.0) || !std::isfinite(s)) {
-      params.fail("noise_std_v", "R must be positive definite: every std must be > 0 V, got " + text_of(s));
+      params.fail("noise_std_v", "R must be positive definite: every std must be > 0 V, got " + number_text(s));
     }
   }
 
@@ -377,11 +362,7 @@ void EkfEncoder::write_outputs() noexcept {
 
 void EkfEncoder::describe(Json& out) const {
   out["model"] = model_name_;
-  if (model_) {
-    Json model = Json::object();
-    model_->describe(model);
-    out["measurement_model"] = std::move(model);
-  }
+  if (model_) out["measurement_model"] = estimator::description_of(*model_);
   out["period_s"] = period_s_;
   out["acceleration_pole_rad_s"] = alpha_rad_s_;
   out["acceleration_variance_m2_s4"] = acceleration_variance_;

@@ -4,22 +4,18 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <cmath>
-#include <cstdio>
 #include <string>
 #include <vector>
 
+#include "estimator/describe_json.hpp"
+#include "estimator/weighted_least_squares.hpp"
 #include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
 #include "lode/sdk/units.hpp"
 
 namespace lode::plugins {
 
 namespace {
-
-std::string text_of(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%g", value);
-  return buffer;
-}
 
 constexpr std::int64_t kMaxIterations = 20;
 /// Reciprocal condition of H'WH after scaling every column to unit diagonal (the columns mix
@@ -73,16 +69,7 @@ Status GapPose::configure(ConfigureContext& ctx) {
                                " channels; the 6-DOF pose needs 6 to " + std::to_string(kMaxChannels));
     }
   }
-  if (noise_std_v_.size() != 1 && static_cast<int>(noise_std_v_.size()) != channels_) {
-    params.fail("noise_std_v", "needs one value or one per channel (" + std::to_string(channels_) + "), got " +
-                                   std::to_string(noise_std_v_.size()));
-  }
-  for (double sigma : noise_std_v_) {
-    if (!(sigma > 0.0)) {
-      params.fail("noise_std_v", "every channel noise std must be > 0 V, got " + text_of(sigma));
-      break;
-    }
-  }
+  estimator::check_channel_noise(params, noise_std_v_, channels_);
 
   ctx.declare_input(measurement_, "measurement", channels, true);
   ctx.declare_output(pose_, "pose", pose_elements);
@@ -94,10 +81,7 @@ Status GapPose::configure(ConfigureContext& ctx) {
   measured_.resize(channels_);
   predicted_.resize(channels_);
   jacobian_.resize(channels_, kStates);
-  for (int i = 0; i < channels_; ++i) {
-    const double sigma = noise_std_v_.size() == 1 ? noise_std_v_[0] : noise_std_v_[static_cast<std::size_t>(i)];
-    weight_(i) = 1.0 / (sigma * sigma);
-  }
+  estimator::set_channel_weights(noise_std_v_, channels_, weight_);
   // The probes must resolve all six degrees of freedom where the stage starts.
   model_->jacobian(initial_.data(), predicted_.data(), jacobian_.data());
   Normal normal = Normal::Zero();
@@ -106,7 +90,7 @@ Status GapPose::configure(ConfigureContext& ctx) {
   if (!(rcond >= kMinRcond)) {
     params.fail("model", "the probes of model '" + model_name_ +
                              "' cannot resolve all six degrees of freedom at the initial pose (H'WH singular, "
-                             "scaled rcond " + text_of(rcond) + ")");
+                             "scaled rcond " + number_text(rcond) + ")");
     return Status::error("invalid parameters");
   }
   return Status::ok();
@@ -146,11 +130,7 @@ StepStatus GapPose::step(const Tick& /*tick*/) noexcept {
   }
   // The cost at the published pose (one more evaluation; h is cheap).
   model_->evaluate(estimate.data(), predicted_.data());
-  double cost = 0.0;
-  for (int i = 0; i < channels_; ++i) {
-    const double residual = measured_(i) - predicted_(i);
-    cost += weight_(i) * residual * residual;
-  }
+  const double cost = estimator::weighted_cost(measured_, predicted_, weight_, static_cast<std::size_t>(channels_));
   pose_estimate_ = estimate;
   for (int i = 0; i < kStates; ++i) pose_[static_cast<std::size_t>(i)] = estimate(i);
   cost_[0] = cost;
@@ -176,9 +156,7 @@ void GapPose::describe(Json& out) const {
     std::vector<double> std_dev;
     for (int i = 0; i < kStates; ++i) std_dev.push_back(std::sqrt(covariance(i, i)));
     out["pose_noise_std_at_home"] = std_dev;
-    Json model = Json::object();
-    model_->describe(model);
-    out["model_description"] = std::move(model);
+    out["model_description"] = estimator::description_of(*model_);
   }
 }
 

@@ -4,23 +4,19 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <cstdio>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "estimator/describe_json.hpp"
+#include "estimator/weighted_least_squares.hpp"
 #include "lode/sdk/plugin.hpp"
 #include "lode/sdk/rt_log.hpp"
+#include "lode/sdk/text.hpp"
 
 namespace lode::plugins {
 
 namespace {
-
-std::string text_of(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%g", value);
-  return buffer;
-}
 
 constexpr std::int64_t kMaxIterations = 100;
 
@@ -47,7 +43,7 @@ Status Glsdc::configure(ConfigureContext& ctx) {
                    std::to_string(iterations_));
   params.check(backoff_ > 0.0 && backoff_ <= 1.0, "backoff",
                "must be in (0, 1]: the fraction of the step kept when the cost rises (thesis 0.2), "
-               "got " + text_of(backoff_));
+               "got " + number_text(backoff_));
 
   model_ = ctx.measurement_model("model");
   if (!model_) return Status::error("invalid parameters");  // the context said why
@@ -66,24 +62,12 @@ Status Glsdc::configure(ConfigureContext& ctx) {
                              " needs " + std::to_string(free_states_) + " to " +
                              std::to_string(kMaxChannels));
   }
-  if (noise_std_v_.size() != 1 && static_cast<int>(noise_std_v_.size()) != channels_) {
-    params.fail("noise_std_v", "needs one value or one per channel (" + std::to_string(channels_) +
-                                   "), got " + std::to_string(noise_std_v_.size()));
-  }
-  for (double sigma : noise_std_v_) {
-    if (!(sigma > 0.0)) {
-      params.fail("noise_std_v", "every channel noise std must be > 0 V, got " + text_of(sigma));
-      break;
-    }
-  }
+  estimator::check_channel_noise(params, noise_std_v_, channels_);
   if (!params.ok()) return Status::error("invalid parameters");
 
   // W = diag(1/sigma^2) (the thesis uses sigma = 1 mV on every channel).
   weight_.resize(channels_);
-  for (int i = 0; i < channels_; ++i) {
-    const double sigma = noise_std_v_.size() == 1 ? noise_std_v_[0] : noise_std_v_[i];
-    weight_(i) = 1.0 / (sigma * sigma);
-  }
+  estimator::set_channel_weights(noise_std_v_, channels_, weight_);
   measured_.setZero(channels_);
   predicted_.setZero(channels_);
   trial_.setZero(channels_);
@@ -120,12 +104,7 @@ void Glsdc::linearise(const State& z) noexcept {
 }
 
 double Glsdc::cost_of(const ChannelVector& f) const noexcept {
-  double j = 0.0;
-  for (int i = 0; i < channels_; ++i) {
-    const double residual = measured_(i) - f(i);
-    j += weight_(i) * residual * residual;
-  }
-  return j;
+  return estimator::weighted_cost(measured_, f, weight_, static_cast<std::size_t>(channels_));
 }
 
 bool Glsdc::solve(Covariance& r, State& dz) const noexcept {
@@ -298,11 +277,7 @@ void Glsdc::describe(Json& out) const {
   out["weight_diagonal_1_per_v2"] = w;
   out["initial"] = std::vector<double>{initial_(0), initial_(1), initial_(2)};
   out["min_rcond"] = kMinRcond;
-  if (model_) {
-    Json model = Json::object();
-    model_->describe(model);
-    out["model_description"] = std::move(model);
-  }
+  if (model_) out["model_description"] = estimator::description_of(*model_);
 }
 
 namespace {

@@ -11,6 +11,8 @@
 #include <numbers>
 #include <string>
 
+#include "estimator/describe_json.hpp"
+#include "estimator/per_axis.hpp"
 #include "lode/sdk/math/riccati.hpp"
 #include "lode/sdk/plugin.hpp"
 #include "lode/sdk/units.hpp"
@@ -19,15 +21,6 @@
 namespace lode::plugins {
 
 namespace hybrid {
-
-AxisModel AxisModel::make(double t_s) {
-  AxisModel m;
-  m.phi << 1.0, t_s, 0.5 * t_s * t_s,  //
-      0.0, 1.0, t_s,                   //
-      0.0, 0.0, 1.0;
-  m.upsilon << t_s * t_s * t_s / 6.0, 0.5 * t_s * t_s, t_s;
-  return m;
-}
 
 KalmanDesign design_kalman(const AxisModel& model, double q, double r) {
   KalmanDesign out;
@@ -219,19 +212,11 @@ PositionResponse position_response(const AxisModel& model, const Vector3& gain, 
 
 namespace {
 
+using estimator::matrix_json;
+using estimator::per_axis;
+using estimator::vector_values;
 using hybrid::kMaxAxes;
 using hybrid::Vector3;
-
-/// A per-axis list that may also be written as one number for every axis.
-std::vector<double> per_axis(Params& params, std::string_view key, std::vector<double> values, std::size_t axes) {
-  if (values.size() == 1 && axes > 1) values.assign(axes, values.front());
-  if (values.size() != axes) {
-    params.fail(key, "expected one number or " + std::to_string(axes) + " (one per measured axis), got " +
-                         std::to_string(values.size()));
-    values.resize(axes, values.empty() ? 0.0 : values.back());
-  }
-  return values;
-}
 
 /// An injected gain list: 3 numbers [position, velocity, acceleration] for every axis, or
 /// 3 per axis (axis after axis).
@@ -249,19 +234,6 @@ std::vector<Vector3> gains_from_list(Params& params, std::string_view key, const
   return out;
 }
 
-std::vector<double> vector_values(const Vector3& v) { return {v(0), v(1), v(2)}; }
-
-template <typename Derived>
-Json matrix_json(const Eigen::MatrixBase<Derived>& m) {
-  Json rows = Json::array();
-  for (Eigen::Index i = 0; i < m.rows(); ++i) {
-    std::vector<double> row;
-    for (Eigen::Index j = 0; j < m.cols(); ++j) row.push_back(m(i, j));
-    rows.push(Json(row));
-  }
-  return rows;
-}
-
 /// The mixing weights the paper compares (Figs. 7-8), reported by describe().
 constexpr std::array<double, 4> kPaperWeights = {0.0, 0.3, 0.8, 1.0};
 
@@ -276,26 +248,10 @@ Status HybridH2HinfEstimator::configure(ConfigureContext& ctx) {
   const std::string output = params.choice("output", {"filtered", "predicted"}, std::string_view("filtered"));
   timing_ = output == "predicted" ? hybrid::OutputTiming::predicted : hybrid::OutputTiming::filtered;
   initialize_from_first_measurement_ = params.flag("initialize_from_first_measurement", true);
-  invalid_measurement_ = params.choice("invalid_measurement", {"fault", "predict"}, std::string_view("fault")) ==
-                                 "predict"
-                             ? hybrid::InvalidMeasurement::predict
-                             : hybrid::InvalidMeasurement::fault;
+  invalid_measurement_ = estimator::read_invalid_measurement(params);
 
   ctx.declare_input(measurement_, "measurement", {}, true);
-  const Elements* source = ctx.input_source("measurement");
-  if (source == nullptr) {
-    params.fail("inputs",
-                "the measurement input must be connected to a configured block's output: its elements "
-                "(names, units, count) size the filter");
-  } else if (source->empty() || source->size() > kMaxAxes) {
-    params.fail("inputs", "the measurement must have 1 to " + std::to_string(kMaxAxes) + " elements, got " +
-                              std::to_string(source->size()));
-  } else {
-    measurement_elements_ = *source;
-    for (const Element& e : measurement_elements_) {
-      if (e.unit == kAnyUnit) params.fail("inputs", "measurement element '" + e.name + "' has no definite unit ('*')");
-    }
-  }
+  measurement_elements_ = estimator::measured_axes(ctx);
   axes_ = measurement_elements_.size();
 
   // Read every key first (so none is reported as unknown), then check them against n.
@@ -427,16 +383,7 @@ Status HybridH2HinfEstimator::configure(ConfigureContext& ctx) {
                      "(discrete Lyapunov equation P = A P A' + W) has no finite solution on some axis");
   }
 
-  Elements velocity;
-  Elements acceleration;
-  for (const Element& e : measurement_elements_) {
-    velocity.push_back({e.name + "_dot", e.unit + "/s"});
-    acceleration.push_back({e.name + "_ddot", e.unit + "/s^2"});
-  }
-  ctx.declare_output(pose_, "pose", measurement_elements_);
-  ctx.declare_output(velocity_, "velocity", velocity);
-  ctx.declare_output(acceleration_, "acceleration", acceleration);
-  ctx.declare_output(innovation_, "innovation", measurement_elements_);
+  outputs_.declare(ctx, measurement_elements_, true);
   return params.ok() ? Status::ok() : Status::error("invalid parameters");
 }
 
@@ -445,11 +392,8 @@ Status HybridH2HinfEstimator::activate() {
     prior_[i].setZero();
     start_at_measurement_[i] = initialize_from_first_measurement_;
     last_innovation_[i] = 0.0;
-    pose_[i] = 0.0;
-    velocity_[i] = 0.0;
-    acceleration_[i] = 0.0;
-    innovation_[i] = 0.0;
   }
+  outputs_.clear(axes_);
   has_innovation_ = false;
   return Status::ok();
 }
@@ -566,10 +510,7 @@ StepStatus HybridH2HinfEstimator::step(const Tick& /*tick*/) noexcept {
     if (valid[i]) start_at_measurement_[i] = false;
     last_innovation_[i] = residual[i];
     const Vector3& out = timing_ == hybrid::OutputTiming::predicted ? next_prior[i] : posterior[i];
-    pose_[i] = out(hybrid::kPosition);
-    velocity_[i] = out(hybrid::kVelocity);
-    acceleration_[i] = out(hybrid::kAcceleration);
-    innovation_[i] = residual[i];  // 0 on a coasting axis: the output stays finite
+    outputs_.write<3>(i, out, residual[i]);  // innovation 0 on a coasting axis: the output stays finite
   }
   has_innovation_ = all_updated;
   // A new d (set_tunable()/set_mixing()) changes the steady covariance: a few 3x3 products.
@@ -578,27 +519,13 @@ StepStatus HybridH2HinfEstimator::step(const Tick& /*tick*/) noexcept {
 }
 
 StateLayout HybridH2HinfEstimator::state_layout() const {
-  StateLayout layout;
-  layout.covariance = true;
-  for (const Element& e : measurement_elements_) {
-    layout.elements.push_back({e.name, e.unit});
-    layout.elements.push_back({e.name + "_dot", e.unit + "/s"});
-    layout.elements.push_back({e.name + "_ddot", e.unit + "/s^2"});
-  }
-  return layout;
+  return estimator::axis_state_layout(measurement_elements_, 3);
 }
 
 void HybridH2HinfEstimator::export_state(double* values, double* covariance) const noexcept {
-  const std::size_t n = 3 * axes_;
-  if (covariance != nullptr) std::fill(covariance, covariance + n * n, 0.0);  // the axes are independent
-  for (std::size_t i = 0; i < axes_; ++i) {
-    for (int a = 0; a < 3; ++a) {
-      const std::size_t row = 3 * i + static_cast<std::size_t>(a);
-      values[row] = prior_[i](a);
-      if (covariance == nullptr) continue;
-      for (int b = 0; b < 3; ++b) covariance[row * n + 3 * i + static_cast<std::size_t>(b)] = steady_cov_[i](a, b);
-    }
-  }
+  estimator::export_axes<3>(
+      axes_, [&](std::size_t i) -> const Vector3& { return prior_[i]; },
+      [&](std::size_t i) -> const hybrid::Matrix3& { return steady_cov_[i]; }, values, covariance);
 }
 
 void HybridH2HinfEstimator::import_state(const double* values, const double* /*covariance*/,
@@ -606,18 +533,10 @@ void HybridH2HinfEstimator::import_state(const double* values, const double* /*c
   // The gains are steady: only the state is taken. An absent or non-finite element keeps the
   // block's initial value (0, as after activate()).
   for (std::size_t i = 0; i < axes_; ++i) {
-    Vector3 x = Vector3::Zero();
-    bool position_given = false;
-    for (int a = 0; a < 3; ++a) {
-      const std::size_t k = 3 * i + static_cast<std::size_t>(a);
-      if (present[k] != 0 && std::isfinite(values[k])) {
-        x(a) = values[k];
-        if (a == hybrid::kPosition) position_given = true;
-      }
-    }
-    prior_[i] = x;
+    const estimator::ImportedAxis<3> in = estimator::import_axis<3>(i, axes_, values, nullptr, present, 0.0);
+    prior_[i] = in.state;
     // The imported state is the prior; only a missing position still waits for a measurement.
-    start_at_measurement_[i] = initialize_from_first_measurement_ && !position_given;
+    start_at_measurement_[i] = initialize_from_first_measurement_ && !in.position_given();
   }
 }
 
@@ -635,9 +554,7 @@ void HybridH2HinfEstimator::describe(Json& out) const {
   out["d"] = d;
   out["output"] = timing_ == hybrid::OutputTiming::predicted ? "predicted (H x^-_{k+1})" : "filtered (H x^+_k, eq. 24)";
   out["initialize_from_first_measurement"] = initialize_from_first_measurement_;
-  out["invalid_measurement"] = invalid_measurement_ == hybrid::InvalidMeasurement::predict
-                                   ? "predict (the axis coasts on the time update)"
-                                   : "fault";
+  out["invalid_measurement"] = estimator::invalid_measurement_text(invalid_measurement_);
   out["period_s"] = period_s_;
   out["phi"] = matrix_json(model_.phi);
   out["upsilon"] = vector_values(model_.upsilon);

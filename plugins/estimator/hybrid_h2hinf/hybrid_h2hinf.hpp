@@ -51,6 +51,7 @@
 #include <string>
 #include <vector>
 
+#include "estimator/linear_axes.hpp"
 #include "lode/sdk/block.hpp"
 #include "lode/sdk/estimator_state.hpp"
 #include "lode/sdk/tunables.hpp"
@@ -59,22 +60,16 @@ namespace lode::plugins {
 
 namespace hybrid {
 
-inline constexpr std::size_t kMaxAxes = 6;
-
-/// Index names of the per-axis state.
-inline constexpr int kPosition = 0;
-inline constexpr int kVelocity = 1;
-inline constexpr int kAcceleration = 2;
+using estimator::kAcceleration;
+using estimator::kMaxAxes;
+using estimator::kPosition;
+using estimator::kVelocity;
 
 using Matrix3 = Eigen::Matrix3d;
 using Vector3 = Eigen::Vector3d;
 
-/// Phi and Upsilon of eq. 23 for one axis at period t_s.
-struct AxisModel {
-  Matrix3 phi = Matrix3::Identity();
-  Vector3 upsilon = Vector3::Zero();
-  static AxisModel make(double t_s);
-};
+/// Phi and Upsilon of eq. 23 for one axis (MotionModel<3>::make(t_s)).
+using AxisModel = estimator::MotionModel<3>;
 
 /// Steady-state Kalman (H2) gain of one axis (eqs. 26-28).
 struct KalmanDesign {
@@ -153,10 +148,10 @@ inline Vector3 blend(double d, const Vector3& kalman_gain, const Vector3& hinf_g
   return d * kalman_gain + (1.0 - d) * hinf_gain;
 }
 
-enum class OutputTiming { filtered, predicted };
-/// What a non-finite measurement does: fault (the default) or predict (that axis coasts on
-/// x^-_{k+1} = Phi x^-_k for the cycle; the step succeeds).
-enum class InvalidMeasurement { fault, predict };
+using estimator::OutputTiming;
+/// A non-finite measurement faults (the default) or makes that axis coast on
+/// x^-_{k+1} = Phi x^-_k for the cycle (predict; the step succeeds).
+using estimator::InvalidMeasurement;
 
 }  // namespace hybrid
 
@@ -228,10 +223,7 @@ class HybridH2HinfEstimator final : public Block, public Tunables, public Estima
 
   // Ports.
   InputPort measurement_;
-  OutputPort pose_;
-  OutputPort velocity_;
-  OutputPort acceleration_;
-  OutputPort innovation_;
+  estimator::AxisOutputs outputs_;
 
   // State: x^-_k per axis (the prior of the coming step; x^+ is formed in step()).
   std::array<hybrid::Vector3, hybrid::kMaxAxes> prior_{};

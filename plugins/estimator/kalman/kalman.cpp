@@ -7,6 +7,9 @@
 #include <cstdio>
 #include <string>
 
+#include "estimator/describe_json.hpp"
+#include "estimator/per_axis.hpp"
+#include "estimator/usable_covariance.hpp"
 #include "lode/sdk/plugin.hpp"
 #include "lode/sdk/units.hpp"
 #include "lode/sdk/text.hpp"
@@ -65,37 +68,10 @@ template SteadyState<3> steady_state<3>(const AxisModel<3>&, double, double);
 
 namespace {
 
+using estimator::matrix_json;
+using estimator::per_axis;
+using estimator::vector_values;
 using kalman::kMaxAxes;
-
-/// A per-axis list that may also be written as one number for every axis.
-std::vector<double> per_axis(Params& params, std::string_view key, std::vector<double> values,
-                             std::size_t axes) {
-  if (values.size() == 1 && axes > 1) values.assign(axes, values.front());
-  if (values.size() != axes) {
-    params.fail(key, "expected one number or " + std::to_string(axes) + " (one per measured axis), got " +
-                         std::to_string(values.size()));
-    values.resize(axes, values.empty() ? 0.0 : values.back());
-  }
-  return values;
-}
-
-template <typename Derived>
-Json matrix_json(const Eigen::MatrixBase<Derived>& m) {
-  Json rows = Json::array();
-  for (Eigen::Index i = 0; i < m.rows(); ++i) {
-    std::vector<double> row;
-    for (Eigen::Index j = 0; j < m.cols(); ++j) row.push_back(m(i, j));
-    rows.push(Json(row));
-  }
-  return rows;
-}
-
-template <typename Derived>
-std::vector<double> vector_values(const Eigen::MatrixBase<Derived>& v) {
-  std::vector<double> out;
-  for (Eigen::Index i = 0; i < v.size(); ++i) out.push_back(v(i));
-  return out;
-}
 
 }  // namespace
 
@@ -110,32 +86,13 @@ Status KalmanEstimator::configure(ConfigureContext& ctx) {
   const std::string output = params.choice("output", {"predicted", "filtered"}, std::string_view("predicted"));
   timing_ = output == "filtered" ? kalman::OutputTiming::filtered : kalman::OutputTiming::predicted;
   initialize_from_first_measurement_ = params.flag("initialize_from_first_measurement", true);
-  invalid_measurement_ = params.choice("invalid_measurement", {"fault", "predict"}, std::string_view("fault")) ==
-                                 "predict"
-                             ? kalman::InvalidMeasurement::predict
-                             : kalman::InvalidMeasurement::fault;
+  invalid_measurement_ = estimator::read_invalid_measurement(params);
 
   ctx.declare_input(measurement_, "measurement", {}, true);
   ctx.declare_input(covariance_, "covariance", {}, false);
 
   // The measurement's source fixes the number of axes and the output names and units.
-  const Elements* source = ctx.input_source("measurement");
-  if (source == nullptr) {
-    // Not connected, or its source failed to configure (reported there).
-    params.fail("inputs",
-                "the measurement input must be connected to a configured block's output: its elements "
-                "(names, units, count) size the filter");
-  } else if (source->empty() || source->size() > kMaxAxes) {
-    params.fail("inputs", "the measurement must have 1 to " + std::to_string(kMaxAxes) + " elements, got " +
-                              std::to_string(source->size()));
-  } else {
-    measurement_elements_ = *source;
-    for (const Element& e : measurement_elements_) {
-      if (e.unit == kAnyUnit) {
-        params.fail("inputs", "measurement element '" + e.name + "' has no definite unit ('*')");
-      }
-    }
-  }
+  measurement_elements_ = estimator::measured_axes(ctx);
   axes_ = measurement_elements_.size();
 
   // Read every key first (so none is reported as unknown), then check sizes against n.
@@ -179,18 +136,7 @@ Status KalmanEstimator::configure(ConfigureContext& ctx) {
     }
   }
 
-  Elements velocity;
-  Elements acceleration;
-  for (const Element& e : measurement_elements_) {
-    velocity.push_back({e.name + "_dot", e.unit + "/s"});
-    acceleration.push_back({e.name + "_ddot", e.unit + "/s^2"});
-  }
-  ctx.declare_output(pose_, "pose", measurement_elements_);
-  ctx.declare_output(velocity_, "velocity", velocity);
-  if (motion_ == kalman::Motion::constant_acceleration) {
-    ctx.declare_output(acceleration_, "acceleration", acceleration);
-  }
-  ctx.declare_output(innovation_, "innovation", measurement_elements_);
+  outputs_.declare(ctx, measurement_elements_, motion_ == kalman::Motion::constant_acceleration);
   return params.ok() ? Status::ok() : Status::error("invalid parameters");
 }
 
@@ -206,12 +152,9 @@ Status KalmanEstimator::activate() {
   for (std::size_t i = 0; i < axes_; ++i) {
     ca_filters_[i].reset();
     cv_filters_[i].reset();
-    pose_[i] = 0.0;
-    velocity_[i] = 0.0;
-    if (acceleration_.bound()) acceleration_[i] = 0.0;
-    innovation_[i] = 0.0;
     start_at_measurement_[i] = initialize_from_first_measurement_;
   }
+  outputs_.clear(axes_);
   has_innovation_ = false;
   return Status::ok();
 }
@@ -261,41 +204,22 @@ StepStatus KalmanEstimator::run(std::array<kalman::AxisFilter<N>, kMaxAxes>& fil
     filter.commit(cycles[i]);
     if (valid_[i]) start_at_measurement_[i] = false;
     const auto& x = timing_ == kalman::OutputTiming::predicted ? filter.predicted() : filter.filtered();
-    pose_[i] = x(kalman::kPosition);
-    velocity_[i] = x(kalman::kVelocity);
-    if constexpr (N == 3) acceleration_[i] = x(kalman::kAcceleration);
-    innovation_[i] = filter.innovation();  // 0 on a coasting axis: the output stays finite
+    outputs_.write<N>(i, x, filter.innovation());  // innovation 0 on a coasting axis: the output stays finite
   }
   has_innovation_ = all_updated;
   return StepStatus::ok;
 }
 
 StateLayout KalmanEstimator::state_layout() const {
-  StateLayout layout;
-  layout.covariance = true;
-  for (const Element& e : measurement_elements_) {
-    layout.elements.push_back({e.name, e.unit});
-    layout.elements.push_back({e.name + "_dot", e.unit + "/s"});
-    if (motion_ == kalman::Motion::constant_acceleration) layout.elements.push_back({e.name + "_ddot", e.unit + "/s^2"});
-  }
-  return layout;
+  return estimator::axis_state_layout(measurement_elements_, states_per_axis());
 }
 
 template <int N>
 void KalmanEstimator::export_axes(const std::array<kalman::AxisFilter<N>, kMaxAxes>& filters, double* values,
                                   double* covariance) const noexcept {
-  const std::size_t n = axes_ * N;
-  if (covariance != nullptr) std::fill(covariance, covariance + n * n, 0.0);  // cross-axis terms are 0
-  for (std::size_t i = 0; i < axes_; ++i) {
-    const auto& x = filters[i].predicted();
-    const auto& p = filters[i].prior_covariance();
-    for (int a = 0; a < N; ++a) {
-      const std::size_t row = i * N + static_cast<std::size_t>(a);
-      values[row] = x(a);
-      if (covariance == nullptr) continue;
-      for (int b = 0; b < N; ++b) covariance[row * n + i * N + static_cast<std::size_t>(b)] = p(a, b);
-    }
-  }
+  estimator::export_axes<N>(
+      axes_, [&](std::size_t i) -> const auto& { return filters[i].predicted(); },
+      [&](std::size_t i) -> const auto& { return filters[i].prior_covariance(); }, values, covariance);
 }
 
 void KalmanEstimator::export_state(double* values, double* covariance) const noexcept {
@@ -309,33 +233,15 @@ void KalmanEstimator::export_state(double* values, double* covariance) const noe
 template <int N>
 void KalmanEstimator::import_axes(std::array<kalman::AxisFilter<N>, kMaxAxes>& filters, const double* values,
                                   const double* covariance, const std::uint8_t* present) noexcept {
-  using Matrix = typename kalman::AxisFilter<N>::Matrix;
-  using Vector = typename kalman::AxisFilter<N>::Vector;
-  const std::size_t n = axes_ * N;
   for (std::size_t i = 0; i < axes_; ++i) {
-    const double p0 = filters[i].p0();
     // The block's own initial values (activate(): x^- = 0, P^- = p0 I) where nothing usable
     // is given; a non-finite value counts as absent.
-    Vector x = Vector::Zero();
-    Matrix p = p0 * Matrix::Identity();
-    std::array<bool, N> given{};
-    for (int a = 0; a < N; ++a) {
-      const std::size_t k = i * N + static_cast<std::size_t>(a);
-      given[static_cast<std::size_t>(a)] = present[k] != 0 && std::isfinite(values[k]);
-      if (given[static_cast<std::size_t>(a)]) x(a) = values[k];
-    }
-    if (covariance != nullptr) {
-      for (int a = 0; a < N; ++a) {
-        for (int b = 0; b < N; ++b) {
-          if (!given[static_cast<std::size_t>(a)] || !given[static_cast<std::size_t>(b)]) continue;
-          p(a, b) = covariance[(i * N + static_cast<std::size_t>(a)) * n + i * N + static_cast<std::size_t>(b)];
-        }
-      }
-    }
-    filters[i].set_prior(x, kalman::usable_covariance<N>(p, p0));
+    const double p0 = filters[i].p0();
+    const estimator::ImportedAxis<N> in = estimator::import_axis<N>(i, axes_, values, covariance, present, p0);
+    filters[i].set_prior(in.state, estimator::usable_covariance(in.covariance, [p0](Eigen::Index) { return p0; }));
     // The imported state is the prior: no start from the first measurement, unless the
     // position itself was not given (then the next measurement still places it).
-    start_at_measurement_[i] = initialize_from_first_measurement_ && !given[kalman::kPosition];
+    start_at_measurement_[i] = initialize_from_first_measurement_ && !in.position_given();
   }
 }
 
@@ -417,9 +323,7 @@ void KalmanEstimator::describe(Json& out) const {
   out["motion"] = motion_ == kalman::Motion::constant_acceleration ? "constant_acceleration" : "constant_velocity";
   out["output"] = timing_ == kalman::OutputTiming::predicted ? "predicted (x^-_{k+1})" : "filtered (x^+_k)";
   out["initialize_from_first_measurement"] = initialize_from_first_measurement_;
-  out["invalid_measurement"] = invalid_measurement_ == kalman::InvalidMeasurement::predict
-                                   ? "predict (the axis coasts on the time update)"
-                                   : "fault";
+  out["invalid_measurement"] = estimator::invalid_measurement_text(invalid_measurement_);
   out["period_s"] = period_s_;
   out["measurement_variance"] = r_.empty() ? "covariance input (diagonal of R_k)"
                                            : "covariance input if connected, else r";

@@ -43,6 +43,7 @@
 #include <string>
 #include <vector>
 
+#include "estimator/linear_axes.hpp"
 #include "lode/sdk/block.hpp"
 #include "lode/sdk/estimator_state.hpp"
 
@@ -50,51 +51,35 @@ namespace lode::plugins {
 
 namespace kalman {
 
-inline constexpr std::size_t kMaxAxes = 6;
-
-/// Index names of the per-axis state.
-inline constexpr int kPosition = 0;
-inline constexpr int kVelocity = 1;
-inline constexpr int kAcceleration = 2;
+using estimator::kAcceleration;
+using estimator::kMaxAxes;
+using estimator::kPosition;
+using estimator::kVelocity;
 
 enum class Motion { constant_velocity, constant_acceleration };
-enum class OutputTiming { predicted, filtered };
-/// What a non-finite measurement (or a non-finite or non-positive R(i,i)) does.
-enum class InvalidMeasurement {
-  fault,   ///< the step faults, nothing changes (the default)
-  predict  ///< that axis coasts on the time update for this cycle; the step succeeds
-};
+using estimator::OutputTiming;
+/// A non-finite or non-positive R(i,i) counts as an invalid measurement too.
+using estimator::InvalidMeasurement;
 
-/// Discrete model of one axis with N states (2: constant velocity, 3: constant acceleration).
+/// Discrete model of one axis with N states (2: constant velocity, 3: constant acceleration):
+/// Phi and Upsilon of eq. 4.39 (or of the constant-velocity model) and the Q_k of eq. 4.41.
 template <int N>
-struct AxisModel {
-  static_assert(N == 2 || N == 3, "one axis has 2 (CV) or 3 (CA) states");
-  using Matrix = Eigen::Matrix<double, N, N>;
-  using Vector = Eigen::Matrix<double, N, 1>;
+struct AxisModel : estimator::MotionModel<N> {
+  using Matrix = typename estimator::MotionModel<N>::Matrix;
+  using Vector = typename estimator::MotionModel<N>::Vector;
 
-  Matrix phi = Matrix::Identity();
-  Vector upsilon = Vector::Zero();
   double q = 0.0;  ///< Q_k of eq. 4.41 (jerk variance for CA, acceleration variance for CV)
 
-  /// Phi and Upsilon of eq. 4.39 (CA) or of the constant-velocity model, for period t_s.
+  /// Phi and Upsilon for period t_s, with Q_k = q_value.
   static AxisModel make(double t_s, double q_value) {
     AxisModel m;
+    static_cast<estimator::MotionModel<N>&>(m) = estimator::MotionModel<N>::make(t_s);
     m.q = q_value;
-    if constexpr (N == 3) {
-      m.phi << 1.0, t_s, 0.5 * t_s * t_s,  //
-          0.0, 1.0, t_s,                   //
-          0.0, 0.0, 1.0;
-      m.upsilon << t_s * t_s * t_s / 6.0, 0.5 * t_s * t_s, t_s;
-    } else {
-      m.phi << 1.0, t_s,  //
-          0.0, 1.0;
-      m.upsilon << 0.5 * t_s * t_s, t_s;
-    }
     return m;
   }
 
   /// Upsilon Q Upsilon^T: the process-noise covariance added in the propagation.
-  [[nodiscard]] Matrix process_noise() const { return upsilon * q * upsilon.transpose(); }
+  [[nodiscard]] Matrix process_noise() const { return this->upsilon * q * this->upsilon.transpose(); }
 };
 
 /// One covariance step of Table III at measurement variance r (H = [1 0 ...]):
@@ -131,25 +116,6 @@ inline void covariance_predict(const AxisModel<N>& model, const typename AxisMod
                                typename AxisModel<N>::Matrix& next_prior_cov) noexcept {
   next_prior_cov = model.phi * prior_cov * model.phi.transpose() + process_noise;
   next_prior_cov = 0.5 * (next_prior_cov + next_prior_cov.transpose()).eval();
-}
-
-/// A covariance the filter can run with, made from whatever a hot swap hands over (RT-safe):
-/// symmetrised; if that is not finite or not positive definite (Cholesky fails), the cross
-/// terms are dropped and every diagonal element that is not finite and > 0 becomes p0.
-template <int N>
-inline typename AxisModel<N>::Matrix usable_covariance(const typename AxisModel<N>::Matrix& p, double p0) noexcept {
-  using Matrix = typename AxisModel<N>::Matrix;
-  Matrix sym = 0.5 * (p + p.transpose());
-  if (sym.allFinite()) {
-    const Eigen::LLT<Matrix> llt(sym);
-    if (llt.info() == Eigen::Success) return sym;
-  }
-  Matrix diagonal = Matrix::Zero();
-  for (int a = 0; a < N; ++a) {
-    const double v = p(a, a);
-    diagonal(a, a) = (std::isfinite(v) && v > 0.0) ? v : p0;
-  }
-  return diagonal;
 }
 
 /// One axis of the filter: fixed-size state and covariance, no allocation anywhere.
@@ -326,10 +292,7 @@ class KalmanEstimator final : public Block, public EstimatorState {
   // Ports.
   InputPort measurement_;
   InputPort covariance_;
-  OutputPort pose_;
-  OutputPort velocity_;
-  OutputPort acceleration_;
-  OutputPort innovation_;
+  estimator::AxisOutputs outputs_;
 
   // State.
   bool use_covariance_input_ = false;

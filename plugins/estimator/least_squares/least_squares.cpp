@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <string>
 
+#include "estimator/describe_json.hpp"
+#include "estimator/weighted_least_squares.hpp"
 #include "lode/sdk/plugin.hpp"
 #include "lode/sdk/units.hpp"
 #include "lode/sdk/text.hpp"
@@ -183,11 +185,7 @@ StepStatus LeastSquaresPose::step(const Tick& /*tick*/) noexcept {
     estimate_ += gradient_;
   }
   linearize(false);
-  double cost = 0.0;
-  for (std::size_t c = 0; c < channels_; ++c) {
-    const double residual = measurement_[c] - predicted_[c];
-    cost += weight_[c] * residual * residual;
-  }
+  const double cost = estimator::weighted_cost(measurement_, predicted_, weight_, channels_);
   if (!std::isfinite(cost)) return fault("cost is not finite");
   for (std::size_t i = 0; i < states_; ++i) pose_[i] = estimate_(static_cast<Eigen::Index>(i));
   cost_[0] = cost;
@@ -204,9 +202,7 @@ void LeastSquaresPose::describe(Json& out) const {
     Json states = Json::array();
     for (std::size_t j : slot.state_index) states.push(state_elements_[j].name);
     m["states"] = std::move(states);
-    Json model = Json::object();
-    slot.model->describe(model);
-    m["model"] = std::move(model);
+    m["model"] = estimator::description_of(*slot.model);
     models.push(std::move(m));
   }
   out["models"] = std::move(models);

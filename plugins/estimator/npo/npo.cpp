@@ -3,14 +3,15 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <numbers>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "estimator/describe_json.hpp"
 #include "lode/sdk/math/discretize.hpp"
 #include "lode/sdk/plugin.hpp"
+#include "lode/sdk/text.hpp"
 #include "lode/sdk/units.hpp"
 
 namespace lode::plugins {
@@ -105,16 +106,11 @@ namespace {
 
 using npo::kAxes;
 using npo::kStates;
-
-std::string text_of(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%.6g", value);
-  return buffer;
-}
+using estimator::matrix_json;
 
 std::string complex_text(std::complex<double> z) {
-  if (z.imag() == 0.0) return text_of(z.real());
-  return text_of(z.real()) + (z.imag() < 0.0 ? " - " : " + ") + text_of(std::abs(z.imag())) + "i";
+  if (z.imag() == 0.0) return number_text(z.real());
+  return number_text(z.real()) + (z.imag() < 0.0 ? " - " : " + ") + number_text(std::abs(z.imag())) + "i";
 }
 
 /// One number for every axis or one per axis.
@@ -140,17 +136,6 @@ constexpr const char* kMeasurementUnits[kAxes] = {"m", "m", "m", "rad", "rad", "
 /// inertia couples axes at O(I_xy / I); gravity tipped by a period's worth of rotation only at
 /// O(g T^2) ~ 1e-6, which the per-axis design may ignore.
 constexpr double kDecouplingTolerance = 1e-3;
-
-template <typename Derived>
-Json matrix_json(const Eigen::MatrixBase<Derived>& m) {
-  Json rows = Json::array();
-  for (Eigen::Index i = 0; i < m.rows(); ++i) {
-    std::vector<double> row;
-    for (Eigen::Index j = 0; j < m.cols(); ++j) row.push_back(m(i, j));
-    rows.push(Json(row));
-  }
-  return rows;
-}
 
 Json complex_json(std::complex<double> z) {
   Json j = Json::object();
@@ -179,7 +164,7 @@ Status NonlinearPassiveObserver::identify_mass(Params& params, AxisValues& mass)
     if (!(dv > 0.0) || !std::isfinite(dv)) {
       params.fail("model", "process model '" + model_name_ + "': a unit " + model_->process_inputs()[i].name +
                                " does not accelerate " + model_->process_state()[kAxes + i].name +
-                               " (dV = " + text_of(dv) + "); it is not a rigid body with inputs in this order");
+                               " (dV = " + number_text(dv) + "); it is not a rigid body with inputs in this order");
       return Status::error("invalid model");
     }
     mass[i] = period_s_ / dv;
@@ -189,7 +174,7 @@ Status NonlinearPassiveObserver::identify_mass(Params& params, AxisValues& mass)
       if (cross > kDecouplingTolerance * dv) {
         params.fail("model", "process model '" + model_name_ + "': at rest a unit " +
                                  model_->process_inputs()[i].name + " also moves " +
-                                 model_->process_state()[j].name + " by " + text_of(cross) +
+                                 model_->process_state()[j].name + " by " + number_text(cross) +
                                  "; the observer's per-axis gains need a decoupled M (principal axes)");
         return Status::error("invalid model");
       }
@@ -225,9 +210,9 @@ void NonlinearPassiveObserver::read_gains(Params& params, const AxisValues& mass
     for (std::size_t i = 0; i < kAxes; ++i) {
       const double w = 2.0 * std::numbers::pi * observer_frequency_hz_[i];
       params.check(observer_frequency_hz_[i] > 0.0, "observer_frequency_hz",
-                   "must be > 0 Hz, got " + text_of(observer_frequency_hz_[i]));
+                   "must be > 0 Hz, got " + number_text(observer_frequency_hz_[i]));
       params.check(observer_damping_[i] > 0.0, "observer_damping",
-                   "must be > 0, got " + text_of(observer_damping_[i]));
+                   "must be > 0, got " + number_text(observer_damping_[i]));
       a[i] = 2.0 * observer_damping_[i] * w;  // tuning rule (derived, not in the paper)
       d[i] = mass[i] * w * w;
     }
@@ -240,8 +225,8 @@ void NonlinearPassiveObserver::read_gains(Params& params, const AxisValues& mass
   a = per_axis(params, "a0_per_s", a0);
   for (std::size_t i = 0; i < kAxes; ++i) {
     // The passivity argument (Eq. 19) needs d_i > 0 and a_i > 0.
-    params.check(d[i] > 0.0, "d0", "every D0 entry must be > 0 (passivity, Eq. 19), got " + text_of(d[i]));
-    params.check(a[i] > 0.0, "a0_per_s", "every A0 entry must be > 0 1/s (passivity), got " + text_of(a[i]));
+    params.check(d[i] > 0.0, "d0", "every D0 entry must be > 0 (passivity, Eq. 19), got " + number_text(d[i]));
+    params.check(a[i] > 0.0, "a0_per_s", "every A0 entry must be > 0 1/s (passivity), got " + number_text(a[i]));
   }
 }
 
@@ -354,9 +339,9 @@ Status NonlinearPassiveObserver::configure(ConfigureContext& ctx) {
                                 ? axes_[i].discrete_poles[0]
                                 : axes_[i].discrete_poles[1];
         params.fail("integrator", std::string(npo::to_string(integrator_)) + " is unstable on axis " +
-                                      model_->process_state()[i].name + ": a0 T = " + text_of(a[i] * period_s_) +
+                                      model_->process_state()[i].name + ": a0 T = " + number_text(a[i] * period_s_) +
                                       ", error eigenvalue " + complex_text(worst) + " (|z| = " +
-                                      text_of(std::abs(worst)) +
+                                      number_text(std::abs(worst)) +
                                       " >= 1); use exact or backward_euler, or smaller gains");
       }
     }

@@ -42,7 +42,7 @@
 #include <cmath>
 #include <cstddef>
 
-#include "../nonlinear_common/model_estimator.hpp"
+#include "estimator/model_estimator.hpp"
 
 namespace lode::plugins {
 

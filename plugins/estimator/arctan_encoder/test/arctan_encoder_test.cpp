@@ -12,11 +12,13 @@
 #include <random>
 #include <string>
 
+#include "estimator/testing/harness_setup.hpp"
 #include "lode/sdk/testing/allocation_counter.hpp"
 #include "lode/sdk/testing/harness.hpp"
 
 namespace {
 
+using lode::estimator_testing::started;
 using lode::plugins::arctan_encoder::Decoder;
 using lode::plugins::arctan_encoder::decode_angle;
 using lode::plugins::arctan_encoder::Method;
@@ -155,8 +157,7 @@ TEST(ArctanEncoder, NoiseIsTheTheoreticalBaseline) {
 TEST(ArctanEncoder, PortsAndDescribe) {
   BlockHarness h("estimator.arctan_encoder", "pitch_m: 4.0e-6\ninitial_position_m: 1.0e-3\n", kRate);
   h.feed("signals", {{"sin", "V"}, {"cos", "V"}});
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   const auto& e = h.output_elements("estimate");
   ASSERT_EQ(e.size(), 2u);
   EXPECT_EQ(e[0].name, "x");
@@ -180,8 +181,7 @@ TEST(ArctanEncoder, PortsAndDescribe) {
 TEST(ArctanEncoder, ZeroSignalFaults) {
   BlockHarness h("estimator.arctan_encoder", "pitch_m: 4.0e-6\n", kRate);
   h.feed("signals", {{"sin", "V"}, {"cos", "V"}});
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   h.input("signals")[0] = 0.0;
   h.input("signals")[1] = 0.0;
   EXPECT_EQ(h.step(), lode::StepStatus::fault);
@@ -213,8 +213,7 @@ TEST(ArctanEncoder, StepDoesNotAllocate) {
   LODE_REQUIRE_ALLOCATION_COUNTING();
   BlockHarness h("estimator.arctan_encoder", "pitch_m: 4.0e-6\nmethod: arcsin_arccos\n", kRate);
   h.feed("signals", {{"sin", "V"}, {"cos", "V"}});
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   auto in = h.input("signals");
   const auto before = lode::testing::allocation_count();
   for (int k = 0; k < 10000; ++k) {

@@ -15,6 +15,9 @@
 #include <string>
 #include <vector>
 
+#include "estimator/testing/harness_setup.hpp"
+#include "estimator/testing/state_handover.hpp"
+#include "estimator/testing/suspension_estimator.hpp"
 #include "lode/sdk/testing/allocation_counter.hpp"
 #include "lode/sdk/testing/require.hpp"
 #include "lode/sdk/testing/harness.hpp"
@@ -22,13 +25,11 @@
 
 namespace {
 
-constexpr double kDt = 0.5e-3;
+using lode::estimator_testing::kHallDistanceNoise;
+using lode::estimator_testing::started;
+using lode::estimator_testing::suspension_estimator;
 
-std::string exact(double v) {
-  char buffer[40];
-  std::snprintf(buffer, sizeof buffer, "%.17g", v);
-  return buffer;
-}
+constexpr double kDt = 0.5e-3;
 
 // The Euler model (eq. 33 with the mass) of config/suspension_ukf.yaml, and its Jacobian.
 struct Plant {
@@ -107,9 +108,7 @@ const char* const kModels =
     "hall_distance: {plugin: sensor.hall_gap, output: gap}\n";
 
 std::string block(const Benchmark& bm, const std::string& extra = "", const std::string& process = "plant") {
-  return "process: " + process + "\nmeasurement: hall_distance\nq: [5.6e-8, 1.7e-8, 7.71e-3]\n"
-         "process_noise: per_second\nr: 1.2e-7\ninitial_state: [0.0265, 0.0, " + exact(bm.truth[0](2)) +
-         "]\np0: [1e-6, 1e-4, 1e-2]\n" + extra;
+  return suspension_estimator(kHallDistanceNoise, bm.truth[0](2), process) + extra;
 }
 
 std::vector<Eigen::Vector3d> run_block(lode::testing::BlockHarness& h, const Benchmark& bm) {
@@ -191,8 +190,7 @@ TEST(EkfBlock, CovarianceStaysSymmetricPositive) {
   lode::testing::BlockHarness h("estimator.ekf", block(bm), 2000.0, kModels);
   h.feed("measurement", {{"gap", "m"}});
   h.feed("input", {{"gap", "m"}, {"coil_voltage", "V"}});
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   auto measurement = h.input("measurement");  // the spans, not a lookup per cycle
   auto input = h.input("input");
   const auto std_out = h.output("std");
@@ -216,8 +214,7 @@ TEST(EkfBlock, FaultsOnNonFiniteMeasurement) {
   lode::testing::BlockHarness h("estimator.ekf", block(bm), 2000.0, kModels);
   h.feed("measurement", {{"gap", "m"}});
   h.feed("input", {{"coil_voltage", "V"}});
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   h.input("measurement")[0] = NAN;
   EXPECT_EQ(h.step(), lode::StepStatus::fault);
   EXPECT_STREQ(h.block().fault_reason(), "non-finite measurement");
@@ -236,6 +233,6 @@ TEST(EkfBlock, UnknownJacobianChoiceAndMissingInputAreErrors) {
 }
 
 constexpr const char* kStatePlugin = "estimator.ekf";
-#include "../../nonlinear_common/test/model_estimator_state_tests.inc"
+#include "estimator/testing/model_estimator_state_tests.inc"
 
 }  // namespace

@@ -15,6 +15,7 @@
 #include <random>
 #include <string>
 
+#include "estimator/testing/harness_setup.hpp"
 #include "lode/sdk/math/discretize.hpp"
 #include "lode/sdk/math/riccati.hpp"
 #include "lode/sdk/testing/allocation_counter.hpp"
@@ -23,6 +24,8 @@
 namespace lode::plugins {
 namespace {
 
+using lode::estimator_testing::faults_and_holds;
+using lode::estimator_testing::started;
 using ekf_encoder::StateMatrix;
 using ekf_encoder::StateVector;
 using lode::testing::BlockHarness;
@@ -384,8 +387,7 @@ TEST(EkfEncoder, InitialInputSetsTheFirstPosition) {
   // Without the input, initial_position_m plays its part.
   BlockHarness h("estimator.ekf_encoder", "model: head\ninitial_position_m: 1.0e-4\n", 20000.0, kModels);
   h.feed("signals", {{"sin", "V"}, {"cos", "V"}});
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   EXPECT_EQ(h.output("estimate")[0], 1e-4);
   EXPECT_EQ(h.output("std")[0], 4e-8);
   const double x = 1e-4 + 0.1e-6;
@@ -399,8 +401,7 @@ TEST(EkfEncoder, InitialInputSetsTheFirstPosition) {
 TEST(EkfEncoder, PortsAndInnovation) {
   BlockHarness h("estimator.ekf_encoder", "model: head\n", 20000.0, kModels);
   h.feed("signals", {{"sin", "V"}, {"cos", "V"}});
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   const auto& estimate = h.output_elements("estimate");
   ASSERT_EQ(estimate.size(), 2u);
   EXPECT_EQ(estimate[0].unit, "m");
@@ -425,16 +426,11 @@ TEST(EkfEncoder, PortsAndInnovation) {
 TEST(EkfEncoder, NonFiniteSignalFaults) {
   BlockHarness h("estimator.ekf_encoder", "model: head\n", 20000.0, kModels);
   h.feed("signals", {{"sin", "V"}, {"cos", "V"}});
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   h.input("signals")[0] = 0.0;
   h.input("signals")[1] = 1.0;
   ASSERT_EQ(h.step(), lode::StepStatus::ok);
-  const double before = h.output("estimate")[0];
-  h.input("signals")[1] = NAN;
-  EXPECT_EQ(h.step(), lode::StepStatus::fault);
-  EXPECT_NE(std::string(h.block().fault_reason()).find("non-finite"), std::string::npos);
-  EXPECT_EQ(h.output("estimate")[0], before);
+  EXPECT_TRUE(faults_and_holds(h, "signals", 1, NAN, "non-finite encoder signal", "estimate"));
 }
 
 TEST(EkfEncoder, ConfigurationErrorsAreLocated) {
@@ -470,8 +466,7 @@ TEST(EkfEncoder, StepDoesNotAllocate) {
   LODE_REQUIRE_ALLOCATION_COUNTING();
   BlockHarness h("estimator.ekf_encoder", "model: head\nnoise_std_v: [0.0075, 0.005]\n", 20000.0, kModels);
   h.feed("signals", {{"sin", "V"}, {"cos", "V"}});
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   auto in = h.input("signals");
   const auto before = lode::testing::allocation_count();
   for (int k = 0; k < 10000; ++k) {

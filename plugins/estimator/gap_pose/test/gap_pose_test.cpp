@@ -12,6 +12,8 @@
 #include <filesystem>
 #include <string>
 
+#include "estimator/testing/harness_setup.hpp"
+#include "estimator/testing/yaml_numbers.hpp"
 #include "lode/sdk/json.hpp"
 #include "lode/pipeline.hpp"
 #include "lode/plugin_loader.hpp"
@@ -21,27 +23,21 @@
 
 namespace {
 
+using lode::estimator_testing::exact;
+using lode::estimator_testing::exact_list;
+using lode::estimator_testing::started;
+
 constexpr double kRateHz = 2500.0;
 
 std::string pipeline_yaml(const std::array<double, 6>& pose, const std::array<double, 6>& velocity, double noise_v,
                           int iterations) {
-  auto list = [](const std::array<double, 6>& v) {
-    std::string s = "[";
-    for (std::size_t i = 0; i < v.size(); ++i) {
-      char number[32];
-      std::snprintf(number, sizeof number, "%.17g", v[i]);
-      s += (i ? ", " : "") + std::string(number);
-    }
-    return s + "]";
-  };
-  char noise[32];
-  std::snprintf(noise, sizeof noise, "%.17g", noise_v);
   return "pipeline: gap_pose_test\nrate_hz: 2500\n"
          "models:\n"
-         "  stage: {plugin: plant.rigid_body6, initial: " + list(pose) + ", initial_velocity: " + list(velocity) + "}\n"
+         "  stage: {plugin: plant.rigid_body6, initial: " + exact_list(pose) + ", initial_velocity: " + exact_list(velocity) +
+         "}\n"
          "  gaps: {plugin: sensor.capacitive_gap}\n"
          "blocks:\n"
-         "  board: {plugin: io.sim, plant: stage, sensors: [gaps], noise_std_v: " + std::string(noise) +
+         "  board: {plugin: io.sim, plant: stage, sensors: [gaps], noise_std_v: " + exact(noise_v) +
          ", adc_bits: 0, seed: 3, inputs: {command: feed.force}}\n"
          "  solver: {plugin: estimator.gap_pose, model: gaps, noise_std_v: 1.2e-3, iterations: " +
          std::to_string(iterations) + ", inputs: {measurement: board.signals}}\n";
@@ -173,8 +169,7 @@ TEST(GapPose, NoAllocationInStep) {
   LODE_REQUIRE_PLUGINS("sensor.capacitive_gap");
   lode::testing::BlockHarness h("estimator.gap_pose", "model: gaps\n", kRateHz, "gaps: {plugin: sensor.capacitive_gap}\n");
   h.feed("measurement", {{"z1", "V"}, {"z2", "V"}, {"z3", "V"}, {"x1", "V"}, {"x2", "V"}, {"y1", "V"}});
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   LODE_REQUIRE_ALLOCATION_COUNTING();
   auto in = h.input("measurement");
   const std::size_t before = lode::testing::allocation_count();

@@ -8,10 +8,13 @@
 #include <cmath>
 #include <string>
 
+#include "estimator/testing/harness_setup.hpp"
 #include "lode/sdk/testing/allocation_counter.hpp"
 #include "lode/sdk/testing/harness.hpp"
 
 namespace {
+
+using lode::estimator_testing::started;
 
 namespace hall = lode::plugins::hall;
 
@@ -21,8 +24,7 @@ TEST(HallDirect, ConvertsWithCoilCompensation) {
   lode::testing::BlockHarness h("estimator.hall_direct", "", 2000.0);
   h.feed("signals", {{"hall", "V"}});
   h.feed("coil_voltage", {{"gap", "m"}, {"coil_voltage", "V"}});  // like io.sim's truth
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   ASSERT_EQ(h.output_elements("gap")[0].name, "gap");
   ASSERT_EQ(h.output_elements("gap")[0].unit, "m");
   // Spec §1.3 table: C_H = 0.1, 0.2, ..., 0.8 V -> 33.69, 27.15, ..., 16.29 mm.
@@ -42,8 +44,7 @@ TEST(HallDirect, ConvertsWithCoilCompensation) {
 TEST(HallDirect, WithoutTheCoilInputOnlyTheQuiescentLevelIsRemoved) {
   lode::testing::BlockHarness h("estimator.hall_direct", "", 2000.0);
   h.feed("signals", {{"hall", "V"}});
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   h.input("signals")[0] = 2.544 + 0.2;
   ASSERT_EQ(h.step(), lode::StepStatus::ok);
   EXPECT_NEAR(h.output("gap")[0], 27.1525e-3, 1e-7);
@@ -56,8 +57,7 @@ TEST(HallDirect, WithoutTheCoilInputOnlyTheQuiescentLevelIsRemoved) {
 TEST(HallDirect, ClampsOutsideTheValidRangeAndCounts) {
   lode::testing::BlockHarness h("estimator.hall_direct", "", 2000.0);
   h.feed("signals", {{"hall", "V"}});
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   h.input("signals")[0] = 2.0;  // below the quiescent level: no magnet
   ASSERT_EQ(h.step(), lode::StepStatus::ok);
   EXPECT_NEAR(h.output("gap")[0], 46.9e-3, 1e-12);
@@ -74,8 +74,7 @@ TEST(HallDirect, ClampsOutsideTheValidRangeAndCounts) {
 TEST(HallDirect, PicksTheChannelByName) {
   lode::testing::BlockHarness h("estimator.hall_direct", "channel: hall_b\noutput_name: distance", 2000.0);
   h.feed("signals", {{"hall_a", "V"}, {"hall_b", "V"}});
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   EXPECT_EQ(h.output_elements("gap")[0].name, "distance");
   h.input("signals")[0] = 2.544 + 0.1;
   h.input("signals")[1] = 2.544 + 0.4;
@@ -99,8 +98,7 @@ TEST(HallDirect, FaultsOnNonFiniteInputAndDoesNotAllocate) {
   lode::testing::BlockHarness h("estimator.hall_direct", "", 2000.0);
   h.feed("signals", {{"hall", "V"}});
   h.feed("coil_voltage", {{"coil_voltage", "V"}});
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   auto signals = h.input("signals");  // the spans, not a lookup per cycle
   auto coil = h.input("coil_voltage");
   const auto before = lode::testing::allocation_count();

@@ -19,6 +19,9 @@
 #include <thread>
 #include <vector>
 
+#include "estimator/testing/constant_acceleration_axis.hpp"
+#include "estimator/testing/harness_setup.hpp"
+#include "estimator/testing/state_handover.hpp"
 #include "lode/sdk/math/riccati.hpp"
 #include "lode/sdk/testing/allocation_counter.hpp"
 #include "lode/sdk/testing/harness.hpp"
@@ -27,6 +30,11 @@
 namespace lode::plugins {
 namespace {
 
+using estimator_testing::ConstantAccelerationAxis;
+using estimator_testing::hand_over;
+using estimator_testing::mean_nis;
+using estimator_testing::same_outputs;
+using estimator_testing::started;
 using hybrid::AxisModel;
 using hybrid::HinfWeights;
 using hybrid::Matrix3;
@@ -591,27 +599,6 @@ TEST(HybridTunables, SetTunableAllocatesNothing) {
 
 const Elements kPose3 = {{"x", "m"}, {"y", "m"}, {"theta_z", "rad"}};
 
-/// Simulated truth of one constant-acceleration axis (eq. 20-23): jerk w ~ N(0, q), measured
-/// with v ~ N(0, r). Fixed seed.
-class AxisTruth {
- public:
-  AxisTruth(double q, double r, std::uint64_t seed) : q_(q), r_(r), rng_(seed) {
-    const AxisModel m = AxisModel::make(kT);
-    phi_ = m.phi;
-    upsilon_ = m.upsilon;
-  }
-  double measure() { return x_(0) + std::sqrt(r_) * normal_(rng_); }
-  void advance() { x_ = (phi_ * x_ + upsilon_ * (std::sqrt(q_) * normal_(rng_))).eval(); }
-
- private:
-  double q_, r_;
-  std::mt19937_64 rng_;
-  std::normal_distribution<double> normal_{0.0, 1.0};
-  Matrix3 phi_;
-  Vector3 upsilon_;
-  Vector3 x_ = Vector3(2e-3, 0.0, 0.0);
-};
-
 TEST(HybridState, LayoutMatchesTheKalmanOneToOneAndStateCrossesBothWays) {
   const std::string q_r = "q: [1.0e3, 1.0e3, 1.0e5]\nr: 1.0e-6\n";
   BlockHarness hybrid_h("estimator.hybrid_h2hinf", q_r + "hinf_theta: 5.0e5\nd: 0.3\n", kRateHz);
@@ -719,8 +706,7 @@ TEST(HybridState, ExportImportReproducesTheNextStepsBitForBit) {
     BlockHarness b("estimator.hybrid_h2hinf", params, kRateHz);
     for (BlockHarness* h : {&a, &b}) {
       h->feed("measurement", kSixAxes);
-      ASSERT_TRUE(h->configure()) << h->diagnostics();
-      ASSERT_TRUE(h->activate());
+      ASSERT_TRUE(started(*h));
     }
     const std::vector<double> y = noisy_signal(900, 3);
     auto feed = [&](BlockHarness& h, int k) {
@@ -731,19 +717,13 @@ TEST(HybridState, ExportImportReproducesTheNextStepsBitForBit) {
       feed(a, k);
       ASSERT_EQ(a.step(), StepStatus::ok);
     }
-    const auto e = lode::testing::export_state_of(a.estimator());
-    const std::vector<std::uint8_t> present(18, 1);
-    b.estimator().import_state(e.values.data(), e.covariance.data(), present.data());
-    EXPECT_EQ(lode::testing::export_state_of(b.estimator()).values, e.values);
-    EXPECT_EQ(lode::testing::export_state_of(b.estimator()).covariance, e.covariance);
+    EXPECT_TRUE(hand_over(a.block(), b.block()));
     for (int k = 800; k < 900; ++k) {
       feed(a, k);
       feed(b, k);
       ASSERT_EQ(a.step(), StepStatus::ok);
       ASSERT_EQ(b.step(), StepStatus::ok);
-      for (const char* port : {"pose", "velocity", "acceleration", "innovation"}) {
-        for (std::size_t i = 0; i < 6; ++i) ASSERT_EQ(a.output(port)[i], b.output(port)[i]) << port << i << " k " << k;
-      }
+      ASSERT_TRUE(same_outputs(a, b, {"pose", "velocity", "acceleration", "innovation"})) << "k " << k;
     }
   }
 }
@@ -785,23 +765,11 @@ TEST(HybridState, NisAveragesToTheNumberOfChannelsForEveryD) {
     std::snprintf(params, sizeof params, "q: [1.0e3, 1.0e3, 1.0e5]\nr: 1.0e-6\nhinf_theta: 5.0e5\nd: %g\n", d);
     Rig rig(params, kPose3);
     ASSERT_TRUE(rig.status) << rig.h.diagnostics();
-    std::vector<AxisTruth> truth;
-    for (std::size_t i = 0; i < 3; ++i) truth.emplace_back(q[i], kR, 100 + i);
-    double sum = 0.0;
-    int count = 0;
-    for (int k = 0; k < 20200; ++k) {
-      for (std::size_t i = 0; i < 3; ++i) rig.input[i] = truth[i].measure();
-      ASSERT_EQ(rig.h.step(), StepStatus::ok);
-      double nu[3], s[3];
-      ASSERT_TRUE(rig.h.estimator().innovation(nu, s));
-      if (k >= 200) {
-        for (std::size_t i = 0; i < 3; ++i) sum += nu[i] * nu[i] / s[i];
-        ++count;
-      }
-      for (auto& t : truth) t.advance();
-    }
-    const double mean = sum / count;
-    std::printf("hybrid d = %.1f: mean NIS over %d steps = %.4f (m = 3)\n", d, count, mean);
+    std::vector<ConstantAccelerationAxis> truth;
+    for (std::size_t i = 0; i < 3; ++i) truth.emplace_back(kT, q[i], kR, 100 + i, 2e-3);
+    constexpr int kSteps = 20000;
+    const double mean = mean_nis(rig.h, rig.input, truth, 200, kSteps);
+    std::printf("hybrid d = %.1f: mean NIS over %d steps = %.4f (m = 3)\n", d, kSteps, mean);
     EXPECT_GT(mean, 0.7 * 3) << "d = " << d;
     EXPECT_LT(mean, 1.3 * 3) << "d = " << d;
   }

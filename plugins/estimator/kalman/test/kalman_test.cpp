@@ -14,11 +14,14 @@
 #include <cstdio>
 #include <cstdlib>
 #include <new>
-#include <random>
 #include <numbers>
 #include <string>
 #include <vector>
 
+#include "estimator/testing/constant_acceleration_axis.hpp"
+#include "estimator/testing/harness_setup.hpp"
+#include "estimator/testing/state_handover.hpp"
+#include "estimator/testing/yaml_numbers.hpp"
 #include "lode/sdk/testing/allocation_counter.hpp"
 #include "lode/sdk/testing/harness.hpp"
 #include "lode/sdk/testing/state_export.hpp"
@@ -27,6 +30,12 @@
 namespace lode::plugins {
 namespace {
 
+using lode::estimator_testing::ConstantAccelerationAxis;
+using lode::estimator_testing::exact_list;
+using lode::estimator_testing::hand_over;
+using lode::estimator_testing::mean_nis;
+using lode::estimator_testing::same_outputs;
+using lode::estimator_testing::started;
 using lode::testing::BlockHarness;
 
 constexpr double kRateHz = 800.0;
@@ -47,16 +56,6 @@ std::vector<double> numbers_of(const Json& array) {
   std::vector<double> out;
   for (const Json& e : array.elements()) out.push_back(e.as_number());
   return out;
-}
-
-std::string yaml_list(const std::vector<double>& values) {
-  std::string s = "[";
-  for (std::size_t i = 0; i < values.size(); ++i) {
-    char buffer[32];
-    std::snprintf(buffer, sizeof buffer, "%.17g", values[i]);
-    s += (i ? ", " : "") + std::string(buffer);
-  }
-  return s + "]";
 }
 
 // --- 1. Steady-state gains --------------------------------------------------------------
@@ -104,8 +103,7 @@ TEST(EstimatorKalman, RunningGainConvergesToDescribedGain) {
   // data, a one-sample measurement of delta shows K * delta on pose/velocity/acceleration.
   BlockHarness h("estimator.kalman", "q: [100]\nr: [2.2e-10]\noutput: filtered\n", kRateHz);
   h.feed("measurement", {{"x", "m"}});
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   const std::vector<double> gain =
       numbers_of(member(member(member(h.describe(), "axes").elements()[0], "steady_state"), "gain"));
   auto y = h.input("measurement");
@@ -123,7 +121,7 @@ TEST(EstimatorKalman, RunningGainConvergesToDescribedGain) {
 
 /// K[0] of the converged filter (output: filtered) at a diagonal R fed through `covariance`.
 double position_gain_with_covariance(double variance, double r_param) {
-  BlockHarness h("estimator.kalman", "q: [100, 100, 1e5]\nr: " + yaml_list({r_param}) + "\noutput: filtered\n",
+  BlockHarness h("estimator.kalman", "q: [100, 100, 1e5]\nr: " + exact_list({r_param}) + "\noutput: filtered\n",
                  kRateHz);
   h.feed("measurement", kPose);
   Elements cov_elements;
@@ -154,8 +152,7 @@ TEST(EstimatorKalman, TimeVaryingRChangesGainWithinOneRun) {
   BlockHarness h("estimator.kalman", "q: [100]\n", kRateHz);
   h.feed("measurement", {{"x", "m"}});
   h.feed("covariance", {{"xx", "m^2"}});
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   auto y = h.input("measurement");
   auto cov = h.input("covariance");
   auto innovation = h.output("innovation");
@@ -191,8 +188,7 @@ TEST(EstimatorKalman, ConstantVelocityTracksRampWithoutError) {
     BlockHarness h("estimator.kalman",
                    std::string("motion: constant_velocity\nq: [10]\nr: [1e-10]\noutput: ") + output + "\n", kRateHz);
     h.feed("measurement", {{"x", "m"}});
-    ASSERT_TRUE(h.configure()) << h.diagnostics();
-    ASSERT_TRUE(h.activate());
+    ASSERT_TRUE(started(h));
     EXPECT_THROW(h.output("acceleration"), std::out_of_range) << "no acceleration output in constant_velocity";
     auto y = h.input("measurement");
     auto pose = h.output("pose");
@@ -304,8 +300,7 @@ TEST(EstimatorKalman, BadParametersAreLocatedErrors) {
 TEST(EstimatorKalman, NonFiniteMeasurementFaults) {
   BlockHarness h("estimator.kalman", "q: 100\nr: 2.2e-10\n", kRateHz);
   h.feed("measurement", kPose);
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   auto y = h.input("measurement");
   ASSERT_EQ(h.step(), StepStatus::ok);
   const double before = h.output("pose")[0];
@@ -340,8 +335,7 @@ TEST(EstimatorKalman, StepDoesNotAllocate) {
     Elements cov_elements;
     for (int i = 0; i < 9; ++i) cov_elements.push_back({"c" + std::to_string(i), "m^2"});
     h.feed("covariance", cov_elements);
-    ASSERT_TRUE(h.configure()) << h.diagnostics();
-    ASSERT_TRUE(h.activate());
+    ASSERT_TRUE(started(h));
     auto y = h.input("measurement");
     auto cov = h.input("covariance");
     for (std::size_t i = 0; i < 3; ++i) cov[i * 3 + i] = 1e-10;
@@ -355,27 +349,6 @@ TEST(EstimatorKalman, StepDoesNotAllocate) {
 }
 
 // --- estimator state (hot swap), innovation, invalid_measurement ---------------------------
-
-/// Simulated truth of one constant-acceleration axis (eq. 4.35): x_{k+1} = Phi x_k + Upsilon w_k,
-/// w ~ N(0, q) (jerk), measured as y_k = x_k(0) + v_k, v ~ N(0, r). Fixed seed.
-class AxisTruth {
- public:
-  AxisTruth(double q, double r, std::uint64_t seed) : q_(q), r_(r), rng_(seed) {
-    const double t = kPeriodS;
-    phi_ << 1.0, t, 0.5 * t * t, 0.0, 1.0, t, 0.0, 0.0, 1.0;
-    upsilon_ << t * t * t / 6.0, 0.5 * t * t, t;
-  }
-  double measure() { return x_(0) + std::sqrt(r_) * normal_(rng_); }
-  void advance() { x_ = (phi_ * x_ + upsilon_ * (std::sqrt(q_) * normal_(rng_))).eval(); }
-
- private:
-  double q_, r_;
-  std::mt19937_64 rng_;
-  std::normal_distribution<double> normal_{0.0, 1.0};
-  Eigen::Matrix3d phi_;
-  Eigen::Vector3d upsilon_;
-  Eigen::Vector3d x_ = Eigen::Vector3d(1e-3, 0.0, 0.0);
-};
 
 /// Run `h` on a noisy sine for `steps` cycles (3 axes, y(k) also used later by the caller).
 double sine_measurement(int k, std::size_t axis) { return 1e-4 * std::sin(0.01 * k + static_cast<double>(axis)) + 1e-7 * std::cos(1.3 * k); }
@@ -424,8 +397,7 @@ void check_export_import_bit_for_bit(const std::string& params, bool covariance_
   auto make = [&](BlockHarness& h) {
     h.feed("measurement", kPose);
     if (covariance_input) h.feed("covariance", cov_elements);
-    ASSERT_TRUE(h.configure()) << h.diagnostics();
-    ASSERT_TRUE(h.activate());
+    ASSERT_TRUE(started(h));
   };
   BlockHarness a("estimator.kalman", params, kRateHz);
   BlockHarness b("estimator.kalman", params, kRateHz);
@@ -443,24 +415,16 @@ void check_export_import_bit_for_bit(const std::string& params, bool covariance_
     feed(a, k);
     ASSERT_EQ(a.step(), StepStatus::ok);
   }
-  const StateLayout layout = a.estimator().state_layout();
-  const auto e = lode::testing::export_state_of(a.estimator());
-  const std::vector<std::uint8_t> present(layout.size(), 1);
-  b.estimator().import_state(e.values.data(), e.covariance.data(), present.data());
-  const auto e_b = lode::testing::export_state_of(b.estimator());
-  EXPECT_EQ(e_b.values, e.values);
-  EXPECT_EQ(e_b.covariance, e.covariance);
+  EXPECT_TRUE(hand_over(a.block(), b.block()));
+  const std::vector<std::string> ports = params.find("constant_velocity") != std::string::npos
+                                             ? std::vector<std::string>{"pose", "velocity", "innovation"}
+                                             : std::vector<std::string>{"pose", "velocity", "acceleration", "innovation"};
   for (int k = 700; k < 760; ++k) {
     feed(a, k);
     feed(b, k);
     ASSERT_EQ(a.step(), StepStatus::ok);
     ASSERT_EQ(b.step(), StepStatus::ok);
-    for (const char* port : {"pose", "velocity", "acceleration", "innovation"}) {
-      if (std::string(port) == "acceleration" && params.find("constant_velocity") != std::string::npos) continue;
-      for (std::size_t i = 0; i < 3; ++i) {
-        ASSERT_EQ(a.output(port)[i], b.output(port)[i]) << port << "[" << i << "] at k = " << k;
-      }
-    }
+    ASSERT_TRUE(same_outputs(a, b, ports)) << "at k = " << k;
   }
 }
 
@@ -476,8 +440,7 @@ TEST(EstimatorKalmanState, ImportClearsTheFirstMeasurementStart) {
   // the prior, so the first innovation is y - x^- of the import, not 0.
   BlockHarness h("estimator.kalman", "q: 100\nr: 2.2e-10\n", kRateHz);
   h.feed("measurement", {{"x", "m"}});
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   const double values[3] = {1e-3, 0.0, 0.0};
   const double covariance[9] = {1e-10, 0, 0, 0, 1e-6, 0, 0, 0, 1e-2};
   const std::uint8_t present[3] = {1, 1, 1};
@@ -549,28 +512,13 @@ TEST(EstimatorKalmanState, NisAveragesToTheNumberOfChannelsWithTheTrueR) {
   const double r[3] = {2.2e-10, 2.2e-10, 9.6e-9};
   BlockHarness h("estimator.kalman", "q: [100, 100, 1e5]\nr: [2.2e-10, 2.2e-10, 9.6e-9]\n", kRateHz);
   h.feed("measurement", kPose);
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
-  std::vector<AxisTruth> truth;
-  for (std::size_t i = 0; i < 3; ++i) truth.emplace_back(q[i], r[i], 42 + i);
-  auto y = h.input("measurement");
-  double sum = 0.0;
-  int count = 0;
+  ASSERT_TRUE(started(h));
+  std::vector<ConstantAccelerationAxis> truth;
+  for (std::size_t i = 0; i < 3; ++i) truth.emplace_back(kPeriodS, q[i], r[i], 42 + i, 1e-3);
   constexpr int kWarmup = 200;
   constexpr int kSteps = 20000;
-  for (int k = 0; k < kWarmup + kSteps; ++k) {
-    for (std::size_t i = 0; i < 3; ++i) y[i] = truth[i].measure();
-    ASSERT_EQ(h.step(), StepStatus::ok);
-    double nu[3], s[3];
-    ASSERT_TRUE(h.estimator().innovation(nu, s));
-    if (k >= kWarmup) {
-      for (std::size_t i = 0; i < 3; ++i) sum += nu[i] * nu[i] / s[i];
-      ++count;
-    }
-    for (auto& t : truth) t.advance();
-  }
-  const double mean = sum / count;
-  std::printf("kalman: mean NIS over %d steps = %.4f (m = 3)\n", count, mean);
+  const double mean = mean_nis(h, h.input("measurement"), truth, kWarmup, kSteps);
+  std::printf("kalman: mean NIS over %d steps = %.4f (m = 3)\n", kSteps, mean);
   EXPECT_GT(mean, 0.7 * 3);
   EXPECT_LT(mean, 1.3 * 3);
 }
@@ -627,8 +575,7 @@ TEST(EstimatorKalmanInvalid, PredictCoastsTheAxisWithANaN) {
   BlockHarness c("estimator.kalman", "q: 100\ninvalid_measurement: predict\n", kRateHz);
   c.feed("measurement", {{"x", "m"}});
   c.feed("covariance", {{"xx", "m^2"}});
-  ASSERT_TRUE(c.configure()) << c.diagnostics();
-  ASSERT_TRUE(c.activate());
+  ASSERT_TRUE(started(c));
   c.input("covariance")[0] = 1e-10;
   c.input("measurement")[0] = 1e-4;
   ASSERT_EQ(c.step(), StepStatus::ok);
@@ -644,8 +591,7 @@ TEST(EstimatorKalmanInvalid, PredictCoastsTheAxisWithANaN) {
 TEST(EstimatorKalmanInvalid, FaultModeIsTheDefaultAndUnchanged) {
   BlockHarness h("estimator.kalman", "q: 100\nr: 2.2e-10\ninvalid_measurement: fault\n", kRateHz);
   h.feed("measurement", {{"x", "m"}});
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   h.input("measurement")[0] = 1e-4;
   ASSERT_EQ(h.step(), StepStatus::ok);
   const auto before = lode::testing::export_state_of(h.estimator());
@@ -669,8 +615,7 @@ TEST(EstimatorKalmanState, ExportImportInnovationDoNotAllocate) {
   for (const char* motion : {"constant_acceleration", "constant_velocity"}) {
     BlockHarness h("estimator.kalman", std::string("motion: ") + motion + "\nq: [100, 100, 1e5]\nr: 1e-10\n", kRateHz);
     h.feed("measurement", kPose);
-    ASSERT_TRUE(h.configure()) << h.diagnostics();
-    ASSERT_TRUE(h.activate());
+    ASSERT_TRUE(started(h));
     const StateLayout layout = h.estimator().state_layout();
     std::vector<double> values(layout.size()), covariance(layout.size() * layout.size());
     const std::vector<std::uint8_t> present(layout.size(), 1);

@@ -12,12 +12,14 @@
 #include <string>
 #include <vector>
 
+#include "estimator/testing/harness_setup.hpp"
 #include "lode/sdk/testing/allocation_counter.hpp"
 #include "lode/sdk/testing/harness.hpp"
 
 namespace lode::plugins {
 namespace {
 
+using lode::estimator_testing::started;
 using lode::testing::BlockHarness;
 
 constexpr double kRateHz = 800.0;
@@ -56,14 +58,12 @@ TEST(LeastSquares, LinearModelIsSolvedInOneStep) {
   BlockHarness board("io.sim", "plant: stage\nsensors: laser\nadc_bits: 0\nnoise_std_v: 0", kRateHz,
                      board_models("[0, 0, 0, 3.0e-6, 20.0e-6, -15.0e-6]"));
   board.feed("command", kCommand);
-  ASSERT_TRUE(board.configure()) << board.diagnostics();
-  ASSERT_TRUE(board.activate());
+  ASSERT_TRUE(started(board));
   board.step();
 
   BlockHarness h("estimator.least_squares", "models: laser\nnoise_std_v: 1.0e-3", kRateHz, kModels);
   h.feed("measurement", kLaserChannels);
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   const auto signals = board.output("signals");
   std::copy(signals.begin(), signals.end(), h.input("measurement").begin());
   ASSERT_EQ(h.step(), StepStatus::ok);
@@ -83,14 +83,12 @@ TEST(LeastSquares, SixAxisPoseFromHallAndLasers) {
   BlockHarness board("io.sim", "plant: stage\nsensors: [hall, laser]\nadc_bits: 0\nnoise_std_v: 0", kRateHz,
                      board_models(initial));
   board.feed("command", kCommand);
-  ASSERT_TRUE(board.configure()) << board.diagnostics();
-  ASSERT_TRUE(board.activate());
+  ASSERT_TRUE(started(board));
   board.step();
 
   BlockHarness h("estimator.least_squares", "models: [hall, laser]\nnoise_std_v: 1.0e-3", kRateHz, kModels);
   h.feed("measurement", board.output_elements("signals"));
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   const Elements& pose = h.output_elements("pose");
   ASSERT_EQ(pose.size(), 6u);
   const char* names[] = {"x", "y", "theta_z", "z", "theta_x", "theta_y"};
@@ -112,12 +110,10 @@ TEST(LeastSquares, WhiteVoltageNoiseMapsThroughTheGeometry) {
   BlockHarness board("io.sim", "plant: stage\nsensors: laser\nadc_bits: 0\nnoise_std_v: 1.0e-3\nseed: 9", kRateHz,
                      board_models("[0, 0, 0, 0, 0, 0]"));
   board.feed("command", kCommand);
-  ASSERT_TRUE(board.configure()) << board.diagnostics();
-  ASSERT_TRUE(board.activate());
+  ASSERT_TRUE(started(board));
   BlockHarness h("estimator.least_squares", "models: laser\nnoise_std_v: 1.0e-3", kRateHz, kModels);
   h.feed("measurement", kLaserChannels);
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   double sum = 0.0, sum2 = 0.0;
   const int n = 20000;
   for (int k = 0; k < n; ++k) {
@@ -165,8 +161,7 @@ TEST(LeastSquares, FaultsAndAllocatesNothing) {
   Elements channels = {{"A_a", "V"}, {"A_b", "V"}, {"B_a", "V"}, {"B_b", "V"}, {"C_a", "V"}, {"C_b", "V"}};
   channels.insert(channels.end(), kLaserChannels.begin(), kLaserChannels.end());
   h.feed("measurement", channels);
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   auto in = h.input("measurement");
   std::fill(in.begin(), in.end(), 0.0);
   const auto before = lode::testing::allocation_count();

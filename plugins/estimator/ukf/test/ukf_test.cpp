@@ -18,6 +18,9 @@
 #include <vector>
 
 #include "../../../sensor/hall_gap/hall_polynomial.hpp"
+#include "estimator/testing/harness_setup.hpp"
+#include "estimator/testing/state_handover.hpp"
+#include "estimator/testing/suspension_estimator.hpp"
 #include "lode/sdk/testing/allocation_counter.hpp"
 #include "lode/sdk/testing/require.hpp"
 #include "lode/sdk/testing/harness.hpp"
@@ -25,19 +28,15 @@
 
 namespace {
 
+using lode::estimator_testing::faults_and_holds;
+using lode::estimator_testing::kHallDistanceNoise;
+using lode::estimator_testing::started;
+using lode::estimator_testing::suspension_estimator;
 using lode::plugins::ukf::Sums;
 using lode::plugins::ukf::UnscentedCore;
 using lode::plugins::ukf::Weights;
 
 constexpr double kDt = 0.5e-3;
-
-/// Round-trips through text exactly.
-std::string exact(double v) {
-  char buffer[40];
-  std::snprintf(buffer, sizeof buffer, "%.17g", v);
-  return buffer;
-}
-
 
 TEST(UkfWeights, ExactAtThePapersParameters) {
   // alpha = 0.002, beta = 2, kappa = 0, L = 3 (eq. 21): lambda = -2.999988.
@@ -329,10 +328,7 @@ const char* const kModels =
     "hall_distance: {plugin: sensor.hall_gap, output: gap}\n"
     "hall_volts: {plugin: sensor.hall_gap}\n";
 
-const char* const kBlock =
-    "process: plant\nmeasurement: hall_distance\n"
-    "q: [5.6e-8, 1.7e-8, 7.71e-3]\nprocess_noise: per_second\nr: 1.2e-7\n"
-    "initial_state: [0.0265, 0.0, 0.9]\np0: [1e-6, 1e-4, 1e-2]\n";
+const std::string kBlock = suspension_estimator(kHallDistanceNoise, 0.9);
 
 
 void feed_standard(lode::testing::BlockHarness& h) {
@@ -344,8 +340,7 @@ TEST(UkfBlock, PortsDescribeAndWeights) {
   LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
   lode::testing::BlockHarness h("estimator.ukf", kBlock, 2000.0, kModels);
   feed_standard(h);
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   const lode::Elements& state = h.output_elements("state");
   ASSERT_EQ(state.size(), 3u);
   EXPECT_EQ(state[0].name, "gap");
@@ -371,15 +366,12 @@ TEST(UkfBlock, PortsDescribeAndWeights) {
 TEST(UkfBlock, TracksTheBenchmarkLikeTheCore) {
   LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
   const Benchmark b = make_benchmark(3000);
-  lode::testing::BlockHarness h("estimator.ukf",
-                                "process: plant\nmeasurement: hall_distance\n"
-                                "q: [2.8e-11, 8.5e-12, 3.855e-6]\nr: 1.2e-7\n"
-                                "initial_state: [0.0265, 0.0, " + exact(b.truth[0][2]) + "]\n"
-                                "p0: [1e-6, 1e-4, 1e-2]\n",
-                                2000.0, kModels);
+  lode::testing::BlockHarness h(
+      "estimator.ukf",
+      suspension_estimator("measurement: hall_distance\nq: [2.8e-11, 8.5e-12, 3.855e-6]\nr: 1.2e-7\n", b.truth[0][2]),
+      2000.0, kModels);
   feed_standard(h);
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   const CoreRun<double> core = run_core<double>(b, Sums::about_centre);
   ASSERT_TRUE(core.ok);
   double worst = 0.0;
@@ -401,12 +393,11 @@ TEST(UkfBlock, EstimatesFromHallVoltagesThroughTheNonlinearModel) {
   // process input): the filter then runs on volts, R in V^2.
   LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
   const Benchmark b = make_benchmark(3000);
-  lode::testing::BlockHarness h("estimator.ukf",
-                                "process: plant\nmeasurement: hall_volts\n"
-                                "q: [5.6e-8, 1.7e-8, 7.71e-3]\nprocess_noise: per_second\nr: 4e-6\n"
-                                "initial_state: [0.0265, 0.0, " + exact(b.truth[0][2]) + "]\n"
-                                "p0: [1e-6, 1e-4, 1e-2]\n",
-                                2000.0, kModels);
+  lode::testing::BlockHarness h(
+      "estimator.ukf",
+      suspension_estimator("measurement: hall_volts\nq: [5.6e-8, 1.7e-8, 7.71e-3]\nprocess_noise: per_second\nr: 4e-6\n",
+                           b.truth[0][2]),
+      2000.0, kModels);
   h.feed("measurement", {{"hall", "V"}});
   h.feed("input", {{"gap", "m"}, {"coil_voltage", "V"}});
   ASSERT_TRUE(h.configure()) << h.diagnostics();
@@ -437,20 +428,13 @@ TEST(UkfBlock, NonFiniteInputFaultsAndLeavesTheEstimate) {
   LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
   lode::testing::BlockHarness h("estimator.ukf", kBlock, 2000.0, kModels);
   feed_standard(h);
-  ASSERT_TRUE(h.configure()) << h.diagnostics();
-  ASSERT_TRUE(h.activate());
+  ASSERT_TRUE(started(h));
   h.input("measurement")[0] = 0.026;
   h.input("input")[1] = 1.7;
   ASSERT_EQ(h.step(), lode::StepStatus::ok);
-  const double before = h.output("state")[0];
-  h.input("measurement")[0] = NAN;
-  EXPECT_EQ(h.step(), lode::StepStatus::fault);
-  EXPECT_STREQ(h.block().fault_reason(), "non-finite measurement");
+  EXPECT_TRUE(faults_and_holds(h, "measurement", 0, NAN, "non-finite measurement", "state"));
   h.input("measurement")[0] = 0.026;
-  h.input("input")[1] = INFINITY;
-  EXPECT_EQ(h.step(), lode::StepStatus::fault);
-  EXPECT_STREQ(h.block().fault_reason(), "non-finite process input");
-  EXPECT_EQ(h.output("state")[0], before);
+  EXPECT_TRUE(faults_and_holds(h, "input", 1, INFINITY, "non-finite process input", "state"));
 }
 
 TEST(UkfBlock, ConfigurationErrorsAreReportedTogether) {
@@ -498,8 +482,7 @@ TEST(UkfBlock, StepDoesNotAllocate) {
     lode::testing::BlockHarness h("estimator.ukf", block, 2000.0, kModels);
     h.feed("measurement", {{"gap", "m"}, {"hall", "V"}});
     h.feed("input", {{"gap", "m"}, {"coil_voltage", "V"}});
-    ASSERT_TRUE(h.configure()) << h.diagnostics();
-    ASSERT_TRUE(h.activate());
+    ASSERT_TRUE(started(h));
     const Benchmark b = make_benchmark(10000);
     const lode::plugins::hall::Conversion c = lode::plugins::hall::Conversion::paper();
     auto measured = h.input("measurement");  // the spans, not a lookup per cycle
@@ -516,6 +499,6 @@ TEST(UkfBlock, StepDoesNotAllocate) {
 }
 
 constexpr const char* kStatePlugin = "estimator.ukf";
-#include "../../nonlinear_common/test/model_estimator_state_tests.inc"
+#include "estimator/testing/model_estimator_state_tests.inc"
 
 }  // namespace

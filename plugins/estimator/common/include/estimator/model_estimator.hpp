@@ -1,0 +1,190 @@
+// Shared by estimator.ukf and estimator.ekf: a recursive estimator of the state of a plugin
+// process model x_{k+1} = f(x_k, u_k) (lode::ProcessModel) observed through a plugin
+// measurement model y_k = h(x_k) (lode::MeasurementModel), with additive noise
+//   x_{k+1} = f(x_k, u_k) + w_k,  E[w w'] = Q_k;    y_k = h(x_k) + n_k,  E[n n'] = R
+// (Sensors 2016, 16, 1504, eq. 17; Q and R enter additively in eqs. 24 and 27, so the state is
+// not augmented).
+//
+// The library lode_estimator_nonlinear (plugins/estimator/common): each estimator links it and
+// includes "estimator/model_estimator.hpp". configure()/activate()/describe() run on the loader
+// thread; step() and everything it calls on the RT thread, with fixed-capacity Eigen storage
+// (at most kMaxStates states, kMaxChannels channels, kMaxInputs inputs).
+//
+// Wiring, by element name (resolved once, in configure()):
+//  - `measurement` input: each channel of the measurement model is taken from the connected
+//    output's element of the same name (or by position when the sizes agree);
+//  - `input` input: each process input (e.g. coil_voltage [V]) likewise; it carries the input
+//    held over the period that just ended, u_{k-1} (e.g. the board's DAC read-back);
+//  - each element the measurement model depends on is a process state of that name, or else
+//    a process input (so h may depend on u, as the Hall sensor's coil compensation does).
+// Cycle k: (k > 0) predict x_{k|k-1} from x_{k-1|k-1} with u_{k-1}; update with y_k; output
+// x_{k|k}, sqrt(diag P_{k|k}) and the innovation y_k - h(x_{k|k-1}) (an assumed order: the
+// paper's text does not spell out the per-sample order of its loop).
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "lode/sdk/block.hpp"
+#include "lode/sdk/estimator_state.hpp"
+
+namespace lode::plugins::nonlinear {
+
+inline constexpr int kMaxStates = 12;
+inline constexpr int kMaxChannels = 12;
+inline constexpr int kMaxInputs = 12;
+
+using StateVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxStates, 1>;
+using StateMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxStates, kMaxStates>;
+using ChannelVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxChannels, 1>;
+using ChannelMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxChannels, kMaxChannels>;
+using GainMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxStates, kMaxChannels>;
+using ObservationMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxChannels, kMaxStates>;
+using InputVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxInputs, 1>;
+
+/// How the configured q is turned into the per-step Q_k.
+enum class NoiseBasis {
+  per_step,   ///< Q_k = q (a covariance per period)
+  per_second  ///< Q_k = q dt (a white-noise intensity [unit^2/s], Euler discretisation)
+};
+
+/// Where an element the measurement model needs comes from.
+struct ElementSource {
+  bool from_input = false;  ///< false: a process state
+  std::size_t index = 0;
+};
+
+/// The common block: models, noise, initial condition, ports, wiring, outputs.
+/// Subclasses provide the algorithm (filter_cycle) and its own parameters.
+class ModelEstimator : public Block, public EstimatorState {
+ public:
+  Status configure(ConfigureContext& ctx) final;
+  Status activate() final;
+  StepStatus step(const Tick& tick) noexcept final;
+  void describe(Json& out) const final;
+
+  /// @name Estimator state (hot swap). Layout: the process state's names and units, with the
+  /// covariance P. The exported state is what the next step() starts from, x_{k-1|k-1} and
+  /// P_{k-1|k-1} (the cycle predicts from it with u_{k-1}, then updates with y_k).
+  /// import_state() sets them (absent or non-finite elements: initial_state and p0, with zero
+  /// cross terms to the given ones; P symmetrised, and if that is not positive definite its
+  /// diagonal alone is kept) and ends the first-cycle case: the next step() predicts from the
+  /// import. innovation(): y_k - y^_{k|k-1} and the diagonal of the innovation covariance
+  /// (P_yy for the UKF, S = H P^- H' + R for the EKF).
+  //@{
+  [[nodiscard]] StateLayout state_layout() const final;
+  void export_state(double* values, double* covariance) const noexcept final;
+  void import_state(const double* values, const double* covariance, const std::uint8_t* present) noexcept final;
+  [[nodiscard]] std::size_t innovation_size() const final { return m_; }
+  bool innovation(double* residual, double* variance) const noexcept final;
+  //@}
+
+  /// @name Read access (tests, describe).
+  //@{
+  [[nodiscard]] std::size_t state_size() const { return n_; }
+  [[nodiscard]] std::size_t channel_count() const { return m_; }
+  [[nodiscard]] const StateVector& estimate() const { return x_; }
+  [[nodiscard]] const StateMatrix& covariance() const { return P_; }
+  [[nodiscard]] const StateMatrix& process_noise() const { return Q_; }
+  [[nodiscard]] const ChannelMatrix& measurement_noise() const { return R_; }
+  //@}
+
+ protected:
+  /// Read the algorithm's own keys (before the common validation finishes).
+  virtual void read_filter_params(Params& params) = 0;
+  /// Sizes, models and noise are known and valid: derive the algorithm's constants.
+  virtual Status prepare_filter(Params& params) = 0;
+  /// activate() or import_state(): x_ and P_ were set (initial condition or warm start).
+  virtual void reset_filter() noexcept {}
+  /// One cycle (see the file comment). On success x_, P_, innovation_ and
+  /// innovation_variance_ hold the new values; on
+  /// a fault they are left unchanged and fault(reason) has been called.
+  virtual StepStatus filter_cycle(bool first) noexcept = 0;
+  virtual void describe_filter(Json& out) const = 0;
+
+  /// x_next = f(x, u_) over one period.
+  void propagate(const double* x, double* x_next) const noexcept { process_->propagate(dt_, x, u_.data(), x_next); }
+  void propagate(const double* x, const double* u, double* x_next) const noexcept {
+    process_->propagate(dt_, x, u, x_next);
+  }
+  /// y = h(x) with the measurement model's inputs taken from x and u_.
+  void measure(const double* x, double* y) const noexcept;
+  /// y = h(x) and H = dh/dx (m x n; the columns of elements taken from u are dropped).
+  void measure_jacobian(const double* x, double* y, ObservationMatrix& H) const noexcept {
+    measure_jacobian(x, u_.data(), y, H);
+  }
+  void measure_jacobian(const double* x, const double* u, double* y, ObservationMatrix& H) const noexcept;
+  /// The model's analytic F = df/dx at (x, u), or false if it has none.
+  bool analytic_process_jacobian(const double* x, const double* u, StateMatrix& F) const noexcept;
+  /// Central differences: F(:, j) = (f(x + h e_j) - f(x - h e_j)) / 2h with
+  /// h = eps^(1/3) max(|x_j|, scale_j) (scale_j: e.g. sqrt(P_jj)), truncation O(h^2).
+  void numerical_process_jacobian(const double* x, const double* u, const StateVector& scale,
+                                  StateMatrix& F) const noexcept;
+
+  // Sizes and constants.
+  std::size_t n_ = 0;   ///< states
+  std::size_t m_ = 0;   ///< measurement channels
+  std::size_t nu_ = 0;  ///< process inputs
+  double dt_ = 0.0;
+  StateMatrix Q_;       ///< per step
+  ChannelMatrix R_;
+  StateVector x0_;
+  StateMatrix P0_;
+
+  // Models.
+  ModelPtr<ProcessModel> process_;
+  ModelPtr<MeasurementModel> measurement_;
+
+  // Estimate (the subclass updates these in filter_cycle()).
+  StateVector x_;
+  StateMatrix P_;
+  ChannelVector y_;           ///< this cycle's measurement
+  ChannelVector innovation_;  ///< y_k - h(x_{k|k-1})
+  ChannelVector innovation_variance_;  ///< diagonal of the innovation covariance of that update
+  InputVector u_;             ///< the input held over the last period
+
+ private:
+  void gather_measurement_state(const double* x, const double* u, double* model_state) const noexcept;
+  void describe_linearisation(Json& out) const;
+
+  std::string process_name_;
+  std::string measurement_name_;
+  NoiseBasis noise_basis_ = NoiseBasis::per_step;
+  Eigen::MatrixXd q_configured_;
+  std::vector<ElementSource> measurement_state_;
+  std::vector<std::size_t> measurement_index_;  ///< channel c is element measurement_index_[c] of the input
+  std::vector<std::size_t> input_index_;
+  bool first_ = true;
+  bool has_innovation_ = false;  ///< the last step made a measurement update
+
+  InputPort measurement_in_;
+  InputPort input_in_;
+  OutputPort state_out_;
+  OutputPort std_out_;
+  OutputPort innovation_out_;
+};
+
+/// The parameter documentation both estimators share (each plugin lists these in kParams).
+#define LODE_MODEL_ESTIMATOR_PARAM_DOCS                                                                      \
+  {"process", "text", nullptr, "name of a process model in `models:` (e.g. a plant.suspension entry)"},       \
+      {"measurement", "text", nullptr, "name of a measurement model in `models:` (e.g. a sensor.hall_gap)"}, \
+      {"q", "list<number>", nullptr,                                                                         \
+       "process noise: 1 number (q I), n (diagonal) or n*n (row-major), in state units^2 (per step) or "     \
+       "state units^2/s (per_second)"},                                                                      \
+      {"process_noise", "text", "per_step", "per_step (Q_k = q) or per_second (Q_k = q dt, an intensity)"},  \
+      {"r", "list<number>", nullptr, "measurement noise: 1, m (diagonal) or m*m numbers, channel units^2"},  \
+      {"initial_state", "list<number>", nullptr, "x_0, one per process state (eq. 19)"},                     \
+      {"p0", "list<number>", nullptr, "P_0: 1, n (diagonal) or n*n numbers, positive definite (eq. 19)"}
+
+#define LODE_MODEL_ESTIMATOR_PORT_DOCS                                                                         \
+  {"measurement", PortDirection::in, "the measurement model's channels, taken by name (e.g. hall_direct.gap: gap [m])"},   \
+      {"input", PortDirection::in, "the process inputs held over the last period, by name (e.g. stage.truth: coil_voltage)"}, \
+      {"state", PortDirection::out, "x_{k|k}, the process model's state elements"},                                        \
+      {"std", PortDirection::out, "sqrt(diag P_{k|k}), same names and units as the state"},                                \
+      {"innovation", PortDirection::out, "y_k - h(x_{k|k-1}), the measurement channels"}
+
+}  // namespace lode::plugins::nonlinear
