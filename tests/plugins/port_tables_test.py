@@ -57,8 +57,8 @@ def main():
     by_name = {p["name"]: p for p in catalogue}
     problems, checked = [], 0
     for folder in sorted((source / "plugins").glob("*/*/")):
-        if not (folder / "CMakeLists.txt").exists():
-            continue  # a family's shared code (common/), not a plugin
+        if folder.name == "common" or not (folder / "CMakeLists.txt").exists():
+            continue  # a family's shared code, not a plugin
         kind, short = folder.parent.name, folder.name
         name = f"{kind}.{short}"
         where = folder.relative_to(source)

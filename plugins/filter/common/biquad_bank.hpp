@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "lode/sdk/block.hpp"
+#include "lode/sdk/tunables.hpp"
 #include "lode/sdk/math/biquad.hpp"
 
 namespace lode::plugins::filter {

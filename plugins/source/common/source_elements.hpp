@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "lode/sdk/block.hpp"
+#include "lode/sdk/tunables.hpp"
 #include "lode/sdk/params.hpp"
 #include "lode/sdk/port.hpp"
 

@@ -717,7 +717,7 @@ TEST(HybridState, ExportImportReproducesTheNextStepsBitForBit) {
       feed(a, k);
       ASSERT_EQ(a.step(), StepStatus::ok);
     }
-    EXPECT_TRUE(hand_over(a.block(), b.block()));
+    EXPECT_TRUE(hand_over(a.estimator(), b.estimator()));
     for (int k = 800; k < 900; ++k) {
       feed(a, k);
       feed(b, k);

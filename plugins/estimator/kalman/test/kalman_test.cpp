@@ -415,7 +415,7 @@ void check_export_import_bit_for_bit(const std::string& params, bool covariance_
     feed(a, k);
     ASSERT_EQ(a.step(), StepStatus::ok);
   }
-  EXPECT_TRUE(hand_over(a.block(), b.block()));
+  EXPECT_TRUE(hand_over(a.estimator(), b.estimator()));
   const std::vector<std::string> ports = params.find("constant_velocity") != std::string::npos
                                              ? std::vector<std::string>{"pose", "velocity", "innovation"}
                                              : std::vector<std::string>{"pose", "velocity", "acceleration", "innovation"};

@@ -10,7 +10,7 @@ namespace lode::plugins::source::testing {
 
 using lode::testing::BlockHarness;
 
-void expect_tunables(const Block& block, const std::vector<std::pair<std::string, std::string>>& names_and_units) {
+void expect_tunables(const Tunables& block, const std::vector<std::pair<std::string, std::string>>& names_and_units) {
   const std::vector<Tunable> t = block.tunables();
   ASSERT_EQ(t.size(), names_and_units.size());
   for (std::size_t i = 0; i < t.size(); ++i) {
@@ -20,7 +20,7 @@ void expect_tunables(const Block& block, const std::vector<std::pair<std::string
 }
 
 void expect_refusals_change_nothing(const std::string& plugin, const std::string& params, double rate_hz,
-                                    const std::function<void(Block& block)>& refuse) {
+                                    const std::function<void(Tunables& block)>& refuse) {
   BlockHarness h(plugin, params, rate_hz);
   BlockHarness twin(plugin, params, rate_hz);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
@@ -28,7 +28,7 @@ void expect_refusals_change_nothing(const std::string& plugin, const std::string
   ASSERT_TRUE(h.activate());
   ASSERT_TRUE(twin.activate());
   for (int k = 0; k < 300; ++k) {
-    if (k == 100) refuse(h.block());
+    if (k == 100) refuse(h.tunables());
     h.step();
     twin.step();
     ASSERT_EQ(h.output("out")[0], twin.output("out")[0]) << k;

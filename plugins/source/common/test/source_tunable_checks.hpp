@@ -10,17 +10,18 @@
 #include <vector>
 
 #include "lode/sdk/block.hpp"
+#include "lode/sdk/tunables.hpp"
 #include "lode/sdk/testing/harness.hpp"
 
 namespace lode::plugins::source::testing {
 
 /// The block's runtime parameters are exactly these {name, unit}, in this order.
-void expect_tunables(const Block& block, const std::vector<std::pair<std::string, std::string>>& names_and_units);
+void expect_tunables(const Tunables& block, const std::vector<std::pair<std::string, std::string>>& names_and_units);
 
 /// Two sources configured alike run 300 cycles; at cycle 100 `refuse` sets values the first
 /// must refuse (its own expectations): the outputs stay identical throughout.
 void expect_refusals_change_nothing(const std::string& plugin, const std::string& params, double rate_hz,
-                                    const std::function<void(Block& block)>& refuse);
+                                    const std::function<void(Tunables& block)>& refuse);
 
 /// On an activated source, 1000 cycles of set_tunable(index, a or b), which must be accepted,
 /// a NaN at the same index and an index out of range, which are refused, and step():

@@ -96,7 +96,7 @@ TEST(SourceRamp, DescribeGivesTheFinalValue) {
 TEST(SourceRampTunables, OffsetAndRatePerElement) {
   BlockHarness h("source.ramp", "names: [x, theta_z]\nunits: [m, rad]\nrate: [1e-3, 2e-3]\n", 1000.0);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
-  expect_tunables(h.block(),
+  expect_tunables(h.tunables(),
                   {{"offset.x", "m"}, {"offset.theta_z", "rad"}, {"rate.x", "m/s"}, {"rate.theta_z", "rad/s"}});
   EXPECT_DOUBLE_EQ(h.tunables().tunable_value(3), 2e-3);
 }
@@ -123,7 +123,7 @@ TEST(SourceRampTunables, NewRateBendsTheRampWithoutAJump) {
 }
 
 TEST(SourceRampTunables, RefusedValuesChangeNothing) {
-  expect_refusals_change_nothing("source.ramp", "names: [x]\nunits: [m]\nrate: [1e-3]\n", 1000.0, [](lode::Block& b) {
+  expect_refusals_change_nothing("source.ramp", "names: [x]\nunits: [m]\nrate: [1e-3]\n", 1000.0, [](lode::Tunables& b) {
     const char* why = "";
     EXPECT_FALSE(b.set_tunable(1, std::numeric_limits<double>::infinity(), why));
     EXPECT_STRNE(why, "");

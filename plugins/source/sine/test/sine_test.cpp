@@ -83,7 +83,7 @@ phase_rad: [0])",
 TEST(SourceSineTunables, OffsetAmplitudeAndFrequencyUpToNyquist) {
   BlockHarness h("source.sine", "names: [x]\nunits: [m]\namplitude: [1e-4]\nfrequency_hz: [10]\n", kRateHz);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
-  expect_tunables(h.block(), {{"offset.x", "m"}, {"amplitude.x", "m"}, {"frequency_hz.x", "Hz"}});
+  expect_tunables(h.tunables(), {{"offset.x", "m"}, {"amplitude.x", "m"}, {"frequency_hz.x", "Hz"}});
   const auto t = h.tunables().tunables();
   ASSERT_EQ(t.size(), 3u);
   EXPECT_EQ(t[2].min, 0.0);
@@ -114,7 +114,7 @@ TEST(SourceSineTunables, NewFrequencyKeepsThePhaseOfTheLastSample) {
 
 TEST(SourceSineTunables, RefusedValuesChangeNothing) {
   const char* params = "names: [u]\nunits: [N]\namplitude: [1]\nfrequency_hz: [10]\n";
-  expect_refusals_change_nothing("source.sine", params, kRateHz, [](lode::Block& b) {
+  expect_refusals_change_nothing("source.sine", params, kRateHz, [](lode::Tunables& b) {
     const char* why = "";
     EXPECT_FALSE(b.set_tunable(2, 600.0, why)) << "above Nyquist (500 Hz)";
     EXPECT_NE(std::string(why).find("Nyquist"), std::string::npos) << why;

@@ -140,7 +140,7 @@ TEST(SourceStepTunables, OffsetPerElementWithItsUnit) {
   BlockHarness h("source.step", "names: [x, theta_z]\nunits: [m, rad]\noffset: [1e-3, 0]\n"
                                 "steps: [{time_s: 0.5, value: [2e-3, 1e-3]}]\n", 1000.0);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
-  expect_tunables(h.block(), {{"offset.x", "m"}, {"offset.theta_z", "rad"}});
+  expect_tunables(h.tunables(), {{"offset.x", "m"}, {"offset.theta_z", "rad"}});
   const auto t = h.tunables().tunables();
   ASSERT_EQ(t.size(), 2u);
   EXPECT_FALSE(t[0].integer);

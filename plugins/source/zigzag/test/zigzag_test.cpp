@@ -134,7 +134,7 @@ TEST(SourceZigzagTunables, OffsetAndAmplitudePerElement) {
   BlockHarness h("source.zigzag", "names: [x, y]\nunits: [m, m]\namplitude: [1e-3, 0]\nadvance: [0, 1e-4]\n"
                                   "period_s: 1\n", 1000.0);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
-  expect_tunables(h.block(), {{"offset.x", "m"}, {"offset.y", "m"}, {"amplitude.x", "m"}, {"amplitude.y", "m"}});
+  expect_tunables(h.tunables(), {{"offset.x", "m"}, {"offset.y", "m"}, {"amplitude.x", "m"}, {"amplitude.y", "m"}});
   EXPECT_DOUBLE_EQ(h.tunables().tunable_value(2), 1e-3);
 }
 

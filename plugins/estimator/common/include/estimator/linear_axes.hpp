@@ -24,6 +24,7 @@
 #include <cstdint>
 
 #include "lode/sdk/block.hpp"
+#include "lode/sdk/estimator_state.hpp"
 
 namespace lode::plugins::estimator {
 

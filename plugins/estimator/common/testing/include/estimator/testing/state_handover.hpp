@@ -17,7 +17,7 @@ namespace lode::estimator_testing {
 
 /// `to` imports the state `from` exports, every element present; it must then export exactly
 /// that state (values and covariance).
-inline ::testing::AssertionResult hand_over(Block& from, Block& to) {
+inline ::testing::AssertionResult hand_over(EstimatorState& from, EstimatorState& to) {
   const lode::testing::ExportedState e = lode::testing::export_state_of(from);
   const std::vector<std::uint8_t> present(e.values.size(), 1);
   to.import_state(e.values.data(), e.covariance.data(), present.data());
