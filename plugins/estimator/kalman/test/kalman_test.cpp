@@ -22,6 +22,7 @@
 #include "estimator/testing/harness_setup.hpp"
 #include "estimator/testing/state_handover.hpp"
 #include "estimator/testing/yaml_numbers.hpp"
+#include "lode/sdk/testing/plugin_checks.hpp"
 #include "lode/sdk/testing/allocation_counter.hpp"
 #include "lode/sdk/testing/harness.hpp"
 #include "lode/sdk/testing/state_export.hpp"
@@ -37,26 +38,13 @@ using lode::estimator_testing::mean_nis;
 using lode::estimator_testing::same_outputs;
 using lode::estimator_testing::started;
 using lode::testing::BlockHarness;
+using lode::testing::member;
+using lode::testing::numbers_of;
 
 constexpr double kRateHz = 800.0;
 constexpr double kPeriodS = 1.0 / kRateHz;
 const Elements kPose{{"x", "m"}, {"y", "m"}, {"theta_z", "rad"}};
 
-const Json& member(const Json& j, const std::string& key) {
-  const Json* m = j.find(key);
-  if (m == nullptr) {
-    static const Json null;
-    ADD_FAILURE() << "describe() has no '" << key << "'";
-    return null;
-  }
-  return *m;
-}
-
-std::vector<double> numbers_of(const Json& array) {
-  std::vector<double> out;
-  for (const Json& e : array.elements()) out.push_back(e.as_number());
-  return out;
-}
 
 // --- 1. Steady-state gains --------------------------------------------------------------
 
