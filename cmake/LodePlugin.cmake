@@ -36,15 +36,18 @@ function(lode_add_plugin)
   endif()
 endfunction()
 
-# lode_add_family_library(NAME <target> SOURCES <files...> [LIBS <targets...>] [TESTING])
+# lode_add_family_library(NAME <target> SOURCES <files...> [LIBS <targets...>] [TESTING]
+#                         [INCLUDE_DIR <dir>])
 #
 # What one family of plugins shares, in plugins/<kind>/common/: a static library (position-
 # independent: it is linked into each plugin's module) whose sources' folder is on the include
 # path of whatever links it, e.g. lode_add_plugin(... LIBS <target>). With TESTING: helpers
 # that the family's tests share (built with the tests only, on lodestone::testing and
-# GoogleTest), linked with lode_add_plugin(... TEST_LIBS <target>).
+# GoogleTest), linked with lode_add_plugin(... TEST_LIBS <target>). INCLUDE_DIR (relative to
+# the folder) puts another folder on the include path instead, for headers kept apart from
+# their sources.
 function(lode_add_family_library)
-  cmake_parse_arguments(L "TESTING" "NAME" "SOURCES;LIBS" ${ARGN})
+  cmake_parse_arguments(L "TESTING" "NAME;INCLUDE_DIR" "SOURCES;LIBS" ${ARGN})
   if(NOT L_NAME OR NOT L_SOURCES)
     message(FATAL_ERROR "lode_add_family_library: NAME and SOURCES are required")
   endif()
@@ -53,6 +56,9 @@ function(lode_add_family_library)
   endif()
   list(GET L_SOURCES 0 first_source)
   get_filename_component(source_dir ${first_source} DIRECTORY)
+  if(L_INCLUDE_DIR)
+    set(source_dir ${L_INCLUDE_DIR})
+  endif()
   add_library(${L_NAME} STATIC ${L_SOURCES})
   set_target_properties(${L_NAME} PROPERTIES POSITION_INDEPENDENT_CODE ON)
   target_link_libraries(${L_NAME} PUBLIC lodestone::core Eigen3::Eigen ${L_LIBS})
