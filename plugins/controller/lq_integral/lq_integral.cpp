@@ -9,6 +9,7 @@
 #include <set>
 #include <string>
 
+#include "lode/sdk/json_eigen.hpp"
 #include "lode/sdk/math/discretize.hpp"
 #include "lode/sdk/plugin.hpp"
 #include "lode/sdk/units.hpp"
@@ -164,17 +165,6 @@ std::vector<double> per_output(Params& p, std::string_view key, std::vector<doub
     values.assign(m, 0.0);
   }
   return values;
-}
-
-template <typename Derived>
-Json matrix_json(const Eigen::MatrixBase<Derived>& m) {
-  Json rows = Json::array();
-  for (Eigen::Index i = 0; i < m.rows(); ++i) {
-    std::vector<double> row;
-    for (Eigen::Index j = 0; j < m.cols(); ++j) row.push_back(m(i, j));
-    rows.push(Json(row));
-  }
-  return rows;
 }
 
 Json text_list(const std::vector<std::string>& values) {

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "lode/sdk/json_eigen.hpp"
 #include "lode/sdk/plugin.hpp"
 #include "lode/sdk/text.hpp"
 #include "plant_parameters.hpp"
@@ -29,17 +30,6 @@ Eigen::Matrix3d matrix3(const std::vector<double>& values) {
       if (k < values.size()) m(i, j) = values[k];
     }
   return m;
-}
-
-template <typename Derived>
-Json matrix_json(const Eigen::MatrixBase<Derived>& m) {
-  Json rows = Json::array();
-  for (Eigen::Index i = 0; i < m.rows(); ++i) {
-    std::vector<double> row;
-    for (Eigen::Index j = 0; j < m.cols(); ++j) row.push_back(m(i, j));
-    rows.push(Json(row));
-  }
-  return rows;
 }
 
 /// Reads a 3x3 row-major matrix and checks it is finite and invertible: a singular B means

@@ -1,33 +1,17 @@
-// Matrices, vectors and models as describe() JSON, the form every estimator reports its gains,
-// covariances and models in (off the RT thread: it allocates).
+// Models as describe() JSON, beside the SDK's matrices and vectors (lode/sdk/json_eigen.hpp),
+// the form every estimator reports its gains, covariances and models in (off the RT thread).
 #pragma once
 
 #include <Eigen/Core>
 #include <vector>
 
 #include "lode/sdk/json.hpp"
+#include "lode/sdk/json_eigen.hpp"
 
 namespace lode::plugins::estimator {
 
-/// Rows of numbers, row-major: [[m00, m01, ...], [m10, ...], ...].
-template <typename Derived>
-Json matrix_json(const Eigen::MatrixBase<Derived>& m) {
-  Json rows = Json::array();
-  for (Eigen::Index i = 0; i < m.rows(); ++i) {
-    std::vector<double> row;
-    for (Eigen::Index j = 0; j < m.cols(); ++j) row.push_back(m(i, j));
-    rows.push(Json(row));
-  }
-  return rows;
-}
-
-/// The elements of a vector, in order.
-template <typename Derived>
-std::vector<double> vector_values(const Eigen::MatrixBase<Derived>& v) {
-  std::vector<double> out;
-  for (Eigen::Index i = 0; i < v.size(); ++i) out.push_back(v(i));
-  return out;
-}
+using lode::matrix_json;    // lode/sdk/json_eigen.hpp
+using lode::vector_values;
 
 /// What a model (measurement, process or plant model) says of itself in its describe().
 template <typename Model>
