@@ -43,6 +43,9 @@ const PortSpec* port_table_entry(const PluginDescriptor& d, const std::string& n
   return pattern;
 }
 
+/// "input" or "output", for messages.
+std::string port_word(PortDirection direction) { return direction == PortDirection::in ? "input" : "output"; }
+
 }  // namespace
 
 // The context each block's configure() sees.
@@ -112,14 +115,14 @@ class LoaderContext final : public ConfigureContext {
   bool listed(const std::string& name, PortDirection direction) {
     const PortSpec* spec = port_table_entry(*e_.plugin.descriptor, name);
     if (!spec) {
-      params_.fail("plugin " + e_.plugin_name + " declared " + (direction == PortDirection::in ? "input" : "output") +
+      params_.fail("plugin " + e_.plugin_name + " declared " + port_word(direction) +
                    " '" + name + "' that its port table does not list (a bug in the plugin)");
       return false;
     }
     if (spec->direction != direction) {
       params_.fail("plugin " + e_.plugin_name + " declared '" + name + "' as an " +
-                   (direction == PortDirection::in ? "input" : "output") + " but its port table lists it as an " +
-                   (direction == PortDirection::in ? "output" : "input") + " (a bug in the plugin)");
+                   port_word(direction) + " but its port table lists it as an " + port_word(spec->direction) +
+                   " (a bug in the plugin)");
       return false;
     }
     return true;
@@ -141,7 +144,7 @@ void check_unconditional_ports(const BlockEntry& e, Params& params) {
             ? e.output(spec.name) != nullptr
             : std::any_of(e.inputs.begin(), e.inputs.end(), [&](const DeclaredInput& in) { return in.name == spec.name; });
     if (!declared)
-      params.fail(std::string("plugin ") + d.name + " did not declare " + to_string(spec.direction) + "put '" +
+      params.fail(std::string("plugin ") + d.name + " did not declare " + port_word(spec.direction) + " '" +
                   spec.name + "', which its port table lists as always present (a bug in the plugin)");
   }
 }
