@@ -12,8 +12,7 @@
 
 #include "lode/sdk/units.hpp"
 #include "params_node.hpp"
-#include "pipeline_impl.hpp"
-#include "port_binder.hpp"
+#include "roles.hpp"
 
 #include "hot_swap_prepared.hpp"
 
@@ -24,7 +23,8 @@ using namespace hot_swap_detail;
 
 void HotSwap::PreparedDeleter::operator()(Prepared* p) const noexcept { delete p; }
 
-HotSwap::HotSwap(Pipeline& pipeline, EventLog& events) : pipeline_(pipeline), events_(events) {}
+HotSwap::HotSwap(Pipeline& pipeline, EventLog& events)
+    : pipeline_(pipeline), roles_(pipeline.roles()), events_(events) {}
 
 HotSwap::~HotSwap() = default;
 
@@ -104,7 +104,7 @@ void HotSwap::after_cycle(const Tick& tick) noexcept {
     // The end of the newcomer's first cycle: keep the retired instance's inputs of that cycle.
     Prepared& p = *box_;
     const std::int64_t t0 = monotonic_ns();
-    const double* arena = pipeline_.impl_->arena.data();
+    const double* arena = roles_.storage();
     for (const auto& span : p.snapshot_spans)
       std::memcpy(p.snapshot.data() + span.offset, arena + span.offset, span.size * sizeof(double));
     p.cost_ns += monotonic_ns() - t0;
@@ -116,7 +116,6 @@ void HotSwap::after_cycle(const Tick& tick) noexcept {
   // the lines prefetched at its start are in this core's cache now: exchange here. (Across
   // the sleep to the next cycle they would not survive on a VM whose idle vCPU loses its cache.)
   Prepared& p = *box_;
-  auto& im = *pipeline_.impl_;
   Family& f = *p.family;
   const std::int64_t t0 = monotonic_ns();
   Tick boundary = tick;
@@ -129,7 +128,7 @@ void HotSwap::after_cycle(const Tick& tick) noexcept {
     return;
   }
   if (p.kind == Prepared::Kind::promote) {
-    im.exchange_roles(f, 0, p.promote_slot + 1);
+    roles_.exchange(f, 0, p.promote_slot + 1);
     f.fallback_used = false;  // the user chose: the fallback is armed again
     // The health statistics were the old primary's: the promoted block starts its own (as
     // after a fallback or a swap), or its first slow step would trip on the old one's.
@@ -168,9 +167,8 @@ void HotSwap::after_cycle(const Tick& tick) noexcept {
 }
 
 void HotSwap::install(Prepared& p, const Tick& boundary, std::int64_t t0) noexcept {
-  auto& im = *pipeline_.impl_;
   Family& f = *p.family;
-  p.retired = im.install(f, p.role, *p.record);
+  p.retired = roles_.install(f, p.role, *p.record);
   f.warming = nullptr;
   if (p.role == 0) {
     f.restart_health();
@@ -187,7 +185,6 @@ void HotSwap::install(Prepared& p, const Tick& boundary, std::int64_t t0) noexce
 
 SwapReport HotSwap::finish(PreparedPtr prepared) {
   Prepared& p = *prepared;
-  auto& im = *pipeline_.impl_;
   state_.store(kIdle, std::memory_order_release);
   box_ = nullptr;
   SwapReport report = std::move(p.report);
@@ -220,13 +217,7 @@ SwapReport HotSwap::finish(PreparedPtr prepared) {
   for (const auto& o : p.role_entry->outputs)
     if (!o.synthetic) { first = &o; break; }
   if (retired && retired->block && first && running_.load(std::memory_order_acquire)) {
-    for (auto& d : retired->inputs)
-      for (const auto& w : retired->wiring) {
-        if (w.input != d.name) continue;
-        const BlockEntry* src = im.find_block(w.src_block);
-        const DeclaredOutput* out = src ? src->output(w.src_port) : nullptr;
-        if (out) PortBinder::bind(*d.port, p.snapshot.data() + out->offset, out->elements.size());
-      }
+    roles_.bind_inputs_to(*retired, p.snapshot.data());
     Tick tick;
     tick.cycle = p.cycle;
     tick.time_ns = p.time_ns;
@@ -243,20 +234,8 @@ SwapReport HotSwap::finish(PreparedPtr prepared) {
     }
   }
   // Retire: deactivate and destroy off the RT thread; the newcomer joins the pool.
-  if (retired && retired->block) {
-    retired->block->deactivate();
-    if (retired->candidate) {
-      auto it = std::find_if(im.pool.begin(), im.pool.end(), [&](const auto& c) { return c.get() == retired; });
-      if (it != im.pool.end()) im.pool.erase(it);
-    } else {
-      retired->adopt(nullptr);  // the role keeps its storage; its first instance is gone
-      retired->plans.clear();
-      retired->staging_plan.clear();
-      retired->inputs.clear();
-      for (auto& o : retired->outputs) o.port = nullptr;
-    }
-  }
-  im.pool.push_back(std::move(p.record));
+  if (retired && retired->block) roles_.retire(*retired);
+  roles_.keep(std::move(p.record));
   ++swaps_;
   swap_cycles_.push_back(p.cycle);
 
@@ -353,10 +332,9 @@ SwapReport HotSwap::swap(const SwapRequest& request, std::chrono::milliseconds t
 
 SwapReport HotSwap::promote(const std::string& shadow, std::chrono::milliseconds timeout) {
   std::lock_guard lock(mutex_);
-  auto& im = *pipeline_.impl_;
   SwapReport r;
   r.block = shadow;
-  BlockEntry* role = im.find_block(shadow);
+  BlockEntry* role = roles_.find(shadow);
   if (!role || role->shadow_of.empty() || role->family < 0) {
     std::vector<std::string> names;
     for (const auto& s : pipeline_.shadows()) names.push_back(s.name);
@@ -366,7 +344,7 @@ SwapReport HotSwap::promote(const std::string& shadow, std::chrono::milliseconds
   }
   auto p = PreparedPtr(new Prepared());
   p->kind = Prepared::Kind::promote;
-  p->family = &im.families[static_cast<std::size_t>(role->family)];
+  p->family = &roles_.family_of(*role);
   p->role = role->family_role;
   p->role_entry = role;
   p->expected = role->live.load(std::memory_order_acquire);

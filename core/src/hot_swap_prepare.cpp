@@ -15,8 +15,7 @@
 
 #include "lode/sdk/units.hpp"
 #include "params_node.hpp"
-#include "pipeline_impl.hpp"
-#include "port_binder.hpp"
+#include "roles.hpp"
 
 #include "hot_swap_prepared.hpp"
 
@@ -29,21 +28,16 @@ using namespace hot_swap_detail;
 // Off the RT thread: build the newcomer.
 
 Expected<HotSwap::PreparedPtr> HotSwap::prepare(const SwapRequest& request) {
-  auto& im = *pipeline_.impl_;
   const std::int64_t start = monotonic_ns();
   auto fail = [&](const std::string& why) {
     return Expected<PreparedPtr>(Status::error("swap " + request.block + ": " + why));
   };
-  BlockEntry* role = im.find_block(request.block);
-  if (!role || (!role->block && role->live.load() == role)) {
-    std::vector<std::string> names;
-    for (auto& f : im.families)
-      for (auto* r : f.roles) names.push_back(r->name);
-    return fail("no swappable block '" + request.block + "' (swappable: " + join(names) + ")");
-  }
+  BlockEntry* role = roles_.find(request.block);
+  if (!role || (!role->block && role->live.load() == role))
+    return fail("no swappable block '" + request.block + "' (swappable: " + join(roles_.swappable()) + ")");
   if (role->family < 0)
     return fail("'" + request.block + "' is " + (role->is_io() ? "an io block: it owns hardware and is not hot-swappable" : "not swappable"));
-  Family& family = im.families[static_cast<std::size_t>(role->family)];
+  Family& family = roles_.family_of(*role);
   if (request.shadow_cycles > 0 && !running_.load(std::memory_order_acquire))
     return fail("shadow_cycles needs a running pipeline (no cycles run now)");
   BlockEntry* incumbent = role->live.load(std::memory_order_acquire);
@@ -59,7 +53,7 @@ Expected<HotSwap::PreparedPtr> HotSwap::prepare(const SwapRequest& request) {
 
   // The plugin: it must load and create a block (not a model, not an io board).
   const std::string plugin = request.plugin.empty() ? incumbent->plugin_name : request.plugin;
-  auto loaded = im.registry->find(plugin);
+  auto loaded = roles_.plugin(plugin);
   if (!loaded) return fail("plugin '" + plugin + "' cannot be used: " + loaded.error());
   if (!creates_block(loaded->descriptor->kind) || loaded->descriptor->kind == PluginKind::io)
     return fail("plugin " + plugin + " is " +
@@ -97,29 +91,9 @@ Expected<HotSwap::PreparedPtr> HotSwap::prepare(const SwapRequest& request) {
   // Its wiring and configuration go through the loader's own code, collecting its
   // diagnostics here.
   Diagnostics diagnostics;
-  Diagnostics* saved = im.diag;
-  const std::string saved_file = im.file;
-  im.diag = &diagnostics;
-  im.file = "swap request";
-  if (given["inputs"]) im.parse_wiring(given["inputs"], "params", *record);
-  else record->wiring = incumbent->wiring;
-  if (diagnostics.empty()) im.configure_block(*record);
-  if (diagnostics.empty()) {
-    // Inputs it does not declare are dropped; what it declares must be wired and match.
-    std::vector<std::string> dropped;
-    std::vector<InputWiring> kept;
-    for (auto& w : record->wiring) {
-      const bool declared = std::any_of(record->inputs.begin(), record->inputs.end(),
-                                        [&](const DeclaredInput& d) { return d.name == w.input; });
-      if (declared) kept.push_back(w);
-      else dropped.push_back(w.input + " (" + w.source + ")");
-    }
-    record->wiring = std::move(kept);
-    if (!dropped.empty()) p->report.state_notes.push_back("inputs not used by " + plugin + ": " + join(dropped));
-    im.resolve_inputs_of(*record);
-  }
-  im.diag = saved;
-  im.file = saved_file;
+  std::vector<std::string> unused;
+  roles_.configure_candidate(*record, given["inputs"], *incumbent, diagnostics, unused);
+  if (!unused.empty()) p->report.state_notes.push_back("inputs not used by " + plugin + ": " + join(unused));
   if (!diagnostics.empty()) {
     std::string why;
     for (const auto& d : diagnostics.items()) why += (why.empty() ? "" : "; ") + d.field + ": " + d.message;
@@ -128,28 +102,16 @@ Expected<HotSwap::PreparedPtr> HotSwap::prepare(const SwapRequest& request) {
   if (!record->block) return fail("plugin " + plugin + " did not create a block");
 
   // Every input must be computed before this role steps (it takes the role's place in the order).
-  const std::size_t role_op = family.op;
-  for (const auto& w : record->wiring) {
-    const BlockEntry* src = im.find_block(w.src_block);
-    if (!src || src->is_io()) continue;
-    std::size_t src_op = im.ops.size();
-    for (std::size_t i = 0; i < im.ops.size(); ++i)
-      if (!im.ops[i].write_phase && src->family >= 0 && src->family_role == 0 &&
-          im.families[static_cast<std::size_t>(src->family)].op == i)
-        src_op = i;
-    if (src_op >= role_op)
-      return fail("input '" + w.input + "' reads " + w.source + ", which is computed after " + request.block +
-                  " in the cycle (or is a shadow): it would read a stale value");
-  }
+  if (const InputWiring* stale = roles_.stale_input(*record, family))
+    return fail("input '" + stale->input + "' reads " + stale->source + ", which is computed after " + request.block +
+                " in the cycle (or is a shadow): it would read a stale value");
   // It must provide every output of the role, same size and units.
-  if (const std::string problem = Pipeline::Impl::stand_in_problem(*record, *role); !problem.empty())
+  if (const std::string problem = Roles::stand_in_problem(*record, *role); !problem.empty())
     return fail(plugin + " cannot take the place of " + incumbent->plugin_name + ": it " + problem +
                 " (a replacement must provide every output of the block, same size and units)");
 
   // Storage, bindings, activation.
-  im.prepare_record(*record, family);
-  for (const auto& b : record->staging_plan) PortBinder::bind(*b.port, b.data, b.size);
-  im.bind_inputs(*record);
+  roles_.bind_candidate(*record, family);
   Status activated;
   try {
     activated = record->block->activate();
@@ -212,12 +174,9 @@ Expected<HotSwap::PreparedPtr> HotSwap::prepare(const SwapRequest& request) {
   }
   // The jump is measured by stepping the retired instance on the exchange cycle's inputs off
   // the RT thread: the RT thread keeps just those (and the role's first output), not the arena.
-  p->snapshot.assign(im.arena.size(), 0.0);
-  for (const auto& w : incumbent->wiring) {
-    const BlockEntry* src = im.find_block(w.src_block);
-    const DeclaredOutput* out = src ? src->output(w.src_port) : nullptr;
-    if (out) p->snapshot_spans.push_back({out->offset, out->elements.size()});
-  }
+  p->snapshot.assign(roles_.storage_size(), 0.0);
+  for (const auto& w : incumbent->wiring)
+    if (const DeclaredOutput* out = roles_.source_of(w)) p->snapshot_spans.push_back({out->offset, out->elements.size()});
   for (const auto& o : role->outputs)
     if (!o.synthetic) {
       p->snapshot_spans.push_back({o.offset, o.elements.size()});

@@ -10,7 +10,7 @@
 
 #include "lode/hot_swap.hpp"
 #include "lode/sdk/text.hpp"
-#include "pipeline_impl.hpp"
+#include "pipeline_records.hpp"
 
 namespace lode {
 

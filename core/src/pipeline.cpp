@@ -55,6 +55,7 @@ const TelemetrySpec& Pipeline::telemetry() const { return impl_->telemetry; }
 const std::string& Pipeline::source_text() const { return impl_->source_text; }
 std::vector<Pipeline::Op>& Pipeline::ops() { return impl_->ops; }
 const std::vector<Pipeline::Op>& Pipeline::ops() const { return impl_->ops; }
+pipeline_detail::Roles& Pipeline::roles() { return impl_->roles; }
 std::optional<SignalRef> Pipeline::signal(const std::string& ref) const { return impl_->signal(ref); }
 
 Block* Pipeline::block(const std::string& name) const {

@@ -107,16 +107,16 @@ void Pipeline::Impl::allocate_and_bind() {
     for (auto& o : b->outputs) PortBinder::bind(*o.port, arena.data() + o.offset, o.elements.size());
     b->live.store(b.get(), std::memory_order_relaxed);
   }
-  for (auto& b : blocks) bind_inputs(*b);
+  for (auto& b : blocks) bind_inputs(*b, arena.data());
 }
 
-void Pipeline::Impl::bind_inputs(BlockEntry& record) {
+void Pipeline::Impl::bind_inputs(BlockEntry& record, const double* storage) {
   for (auto& d : record.inputs)
     for (const auto& w : record.wiring) {
       if (w.input != d.name) continue;
       const BlockEntry* src = find_block(w.src_block);
       const DeclaredOutput* out = src ? src->output(w.src_port) : nullptr;
-      if (out) PortBinder::bind(*d.port, arena.data() + out->offset, out->elements.size());
+      if (out) PortBinder::bind(*d.port, storage + out->offset, out->elements.size());
     }
 }
 

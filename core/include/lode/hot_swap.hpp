@@ -125,6 +125,7 @@ class HotSwap final : public CycleHook {
   void install(Prepared& p, const Tick& boundary, std::int64_t t0) noexcept;
 
   Pipeline& pipeline_;
+  pipeline_detail::Roles& roles_;  ///< all a swap changes, it changes through this
   EventLog& events_;
   std::mutex mutex_;  ///< serialises swaps; never touched by the RT thread
   std::atomic<bool> running_{false};

@@ -21,6 +21,10 @@
 
 namespace lode {
 
+namespace pipeline_detail {
+class Roles;
+}  // namespace pipeline_detail
+
 struct TelemetrySpec;  // telemetry.hpp
 
 enum class OverrunPolicy { skip, catch_up, stop };
@@ -172,9 +176,11 @@ class Pipeline {
   [[nodiscard]] Json describe() const;
 
   struct Impl;
+  /// Roles and instances: the API through which a hot swap changes this pipeline (an
+  /// internal type of the runtime; plugins and applications have no use for it).
+  [[nodiscard]] pipeline_detail::Roles& roles();
 
  private:
-  friend class HotSwap;
   Pipeline();
   std::unique_ptr<Impl> impl_;
 };

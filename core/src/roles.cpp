@@ -1,5 +1,6 @@
 // Roles and instances: shadows of a primary, families, the bindings of an instance into a
-// role, and the exchanges hot swap, promotion and a health fallback make at a cycle boundary.
+// role, the exchanges hot swap, promotion and a health fallback make at a cycle boundary, and
+// the roles API hot swap uses (roles.hpp).
 #include "lode/sdk/clock.hpp"
 #include "lode/config_file.hpp"
 #include "lode/pipeline.hpp"
@@ -24,13 +25,14 @@
 #include "params_node.hpp"
 #include "pipeline_impl.hpp"
 #include "port_binder.hpp"
+#include "roles.hpp"
 #include "yaml_document.hpp"
 
 namespace lode {
 
 using namespace pipeline_detail;
 
-std::string Pipeline::Impl::stand_in_problem(const BlockEntry& candidate, const BlockEntry& role) {
+std::string Roles::stand_in_problem(const BlockEntry& candidate, const BlockEntry& role) {
   for (const auto& o : role.outputs) {
     if (o.synthetic) continue;
     const DeclaredOutput* mine = candidate.output(o.name);
@@ -55,7 +57,7 @@ void Pipeline::Impl::check_shadows(const std::vector<BlockEntry*>& order) {
     if (!primary || !primary->block) continue;  // reported already
     // A shadow must be able to take its primary's place (promotion, fallback): every output
     // of the primary, with the same elements.
-    if (const std::string problem = stand_in_problem(*b, *primary); !problem.empty())
+    if (const std::string problem = Roles::stand_in_problem(*b, *primary); !problem.empty())
       error(b->shadow_where, path,
             "shadow '" + b->name + "' (" + b->plugin_name + ") cannot stand in for '" + b->shadow_of + "' (" +
                 primary->plugin_name + "): it " + problem +
@@ -215,4 +217,109 @@ BlockEntry* Pipeline::Impl::install(Family& f, int role, BlockEntry& record) noe
   return old;
 }
 
+
 }  // namespace lode
+
+// ------------------------------------------------------------------------------------------
+// The roles API (hot swap).
+
+namespace lode::pipeline_detail {
+
+BlockEntry* Roles::find(const std::string& name) const { return pipeline_.find_block(name); }
+
+Family& Roles::family_of(const BlockEntry& role) const {
+  return pipeline_.families[static_cast<std::size_t>(role.family)];
+}
+
+std::vector<std::string> Roles::swappable() const {
+  std::vector<std::string> names;
+  for (const auto& f : pipeline_.families)
+    for (const auto* r : f.roles) names.push_back(r->name);
+  return names;
+}
+
+Expected<LoadedPlugin> Roles::plugin(const std::string& name) const { return pipeline_.registry->find(name); }
+
+std::size_t Roles::storage_size() const { return pipeline_.arena.size(); }
+
+const double* Roles::storage() const { return pipeline_.arena.data(); }
+
+const DeclaredOutput* Roles::source_of(const InputWiring& wiring) const {
+  const BlockEntry* src = pipeline_.find_block(wiring.src_block);
+  return src ? src->output(wiring.src_port) : nullptr;
+}
+
+void Roles::configure_candidate(BlockEntry& candidate, const YAML::Node& inputs, const BlockEntry& incumbent,
+                                Diagnostics& diagnostics, std::vector<std::string>& unused) {
+  // The loader reports into the pipeline's diagnostics, located in its file: point both at
+  // the request for the time of this call.
+  Diagnostics* saved = pipeline_.diag;
+  const std::string saved_file = pipeline_.file;
+  pipeline_.diag = &diagnostics;
+  pipeline_.file = "swap request";
+  if (inputs) pipeline_.parse_wiring(inputs, "params", candidate);
+  else candidate.wiring = incumbent.wiring;
+  if (diagnostics.empty()) pipeline_.configure_block(candidate);
+  if (diagnostics.empty()) {
+    // Inputs it does not declare are dropped; what it declares must be wired and match.
+    std::vector<InputWiring> kept;
+    for (auto& w : candidate.wiring) {
+      const bool declared = std::any_of(candidate.inputs.begin(), candidate.inputs.end(),
+                                        [&](const DeclaredInput& d) { return d.name == w.input; });
+      if (declared) kept.push_back(w);
+      else unused.push_back(w.input + " (" + w.source + ")");
+    }
+    candidate.wiring = std::move(kept);
+    pipeline_.resolve_inputs_of(candidate);
+  }
+  pipeline_.diag = saved;
+  pipeline_.file = saved_file;
+}
+
+const InputWiring* Roles::stale_input(const BlockEntry& candidate, const Family& family) const {
+  const auto& ops = pipeline_.ops;
+  for (const auto& w : candidate.wiring) {
+    const BlockEntry* src = pipeline_.find_block(w.src_block);
+    if (!src || src->is_io()) continue;
+    std::size_t src_op = ops.size();
+    for (std::size_t i = 0; i < ops.size(); ++i)
+      if (!ops[i].write_phase && src->family >= 0 && src->family_role == 0 &&
+          pipeline_.families[static_cast<std::size_t>(src->family)].op == i)
+        src_op = i;
+    if (src_op >= family.op) return &w;
+  }
+  return nullptr;
+}
+
+void Roles::bind_candidate(BlockEntry& candidate, const Family& family) {
+  pipeline_.prepare_record(candidate, family);
+  for (const auto& b : candidate.staging_plan) PortBinder::bind(*b.port, b.data, b.size);
+  pipeline_.bind_inputs(candidate, pipeline_.arena.data());
+}
+
+BlockEntry* Roles::install(Family& family, int role, BlockEntry& record) noexcept {
+  return pipeline_.install(family, role, record);
+}
+
+void Roles::exchange(Family& family, int role_a, int role_b) noexcept { pipeline_.exchange_roles(family, role_a, role_b); }
+
+void Roles::bind_inputs_to(BlockEntry& record, const double* storage) const { pipeline_.bind_inputs(record, storage); }
+
+void Roles::retire(BlockEntry& record) {
+  if (record.block) record.block->deactivate();
+  if (record.candidate) {
+    auto& pool = pipeline_.pool;
+    auto it = std::find_if(pool.begin(), pool.end(), [&](const auto& c) { return c.get() == &record; });
+    if (it != pool.end()) pool.erase(it);
+    return;
+  }
+  record.adopt(nullptr);  // the role keeps its storage; its first instance is gone
+  record.plans.clear();
+  record.staging_plan.clear();
+  record.inputs.clear();
+  for (auto& o : record.outputs) o.port = nullptr;
+}
+
+void Roles::keep(std::unique_ptr<BlockEntry> record) { pipeline_.pool.push_back(std::move(record)); }
+
+}  // namespace lode::pipeline_detail
