@@ -47,6 +47,7 @@
 #include "lode/plugin_loader.hpp"
 #include "lode/sdk/testing/allocation_counter.hpp"
 #include "config_text.hpp"
+#include "swap_rig.hpp"
 
 namespace {
 
@@ -102,50 +103,13 @@ std::string coast_failing(const std::string& yaml, const std::string& params) {
 
 // --- the RT thread, played by the test --------------------------------------------------
 
-struct Rig {
-  explicit Rig(const std::string& yaml) {
-    auto path = lode::PluginRegistry::default_search_path();
-    path.push_back(LODE_HEALTH_PLUGIN_DIR);
-    registry = std::make_unique<lode::PluginRegistry>(path);
-    pipeline = lode::Pipeline::load_text(yaml, "kawato_planar_swap.yaml (test)", *registry, diagnostics);
-    if (!pipeline) return;
-    swapper = std::make_unique<lode::HotSwap>(*pipeline, events);
-    activated = static_cast<bool>(pipeline->activate());
-    swapper->set_running(true);
-  }
-  /// One cycle as the runner's RT thread does it. Its allocations are counted: the hooks and
-  /// run_cycle only, what the test reads afterwards is not.
-  lode::Pipeline::CycleResult step() {
-    lode::Tick t;
-    t.cycle = cycle;
-    t.time_ns = static_cast<std::int64_t>(cycle) * pipeline->period_ns();
-    t.dt_s = 1.0 / pipeline->rate_hz();
-    const auto before = lode::testing::allocation_count();
-    swapper->before_cycle(t);
-    const auto r = pipeline->run_cycle(t, true);
-    swapper->after_cycle(t);
-    last_cycle_allocations = lode::testing::allocation_count() - before;
-    ++cycle;
-    return r;
-  }
-  std::vector<double> value(const std::string& signal) const {
-    auto s = pipeline->signal(signal);
-    return s ? std::vector<double>(s->data, s->data + s->size()) : std::vector<double>{};
-  }
+struct Rig : lode::test::SwapRig {
+  explicit Rig(const std::string& yaml) : SwapRig(yaml, "kawato_planar_swap.yaml (test)", {LODE_HEALTH_PLUGIN_DIR}) {}
   bool stage_driven_safe() const {
     const lode::Json d = pipeline->describe();
     const lode::Json* safe = d.find("blocks")->find("stage")->find("derived")->find("safe");
     return safe != nullptr && safe->as_bool();
   }
-
-  std::unique_ptr<lode::PluginRegistry> registry;
-  lode::Diagnostics diagnostics;
-  lode::EventLog events;
-  std::unique_ptr<lode::Pipeline> pipeline;
-  std::unique_ptr<lode::HotSwap> swapper;
-  bool activated = false;
-  std::uint64_t cycle = 0;
-  std::size_t last_cycle_allocations = 0;
 };
 
 /// What a run showed, cycle by cycle.

@@ -40,6 +40,7 @@
 #include "lode/plugin_loader.hpp"
 #include "lode/sdk/testing/allocation_counter.hpp"
 #include "config_text.hpp"
+#include "swap_rig.hpp"
 
 namespace {
 
@@ -54,31 +55,11 @@ const char* kKalmanParams =
     "output: predicted}";
 constexpr std::array<double, 3> kR{2.2e-10, 2.2e-10, 9.6e-9};
 
-/// The test thread as the RT thread: hooks around run_cycle, one period per cycle.
-struct Rig {
-  explicit Rig(const std::string& yaml, std::vector<std::string> extra_search = {}) {
-    auto path = lode::PluginRegistry::default_search_path();
-    path.insert(path.end(), extra_search.begin(), extra_search.end());
-    registry = std::make_unique<lode::PluginRegistry>(path);
-    pipeline = lode::Pipeline::load_text(yaml, "kawato_planar_swap.yaml (test)", *registry, diagnostics);
-    if (!pipeline) return;
-    swapper = std::make_unique<lode::HotSwap>(*pipeline, events);
-    activated = static_cast<bool>(pipeline->activate());
-    swapper->set_running(true);
-  }
-  lode::Pipeline::CycleResult step(const std::function<void()>& at_cycle_end = {}) {
-    lode::Tick t;
-    t.cycle = cycle;
-    t.time_ns = static_cast<std::int64_t>(cycle) * pipeline->period_ns();
-    t.dt_s = 1.0 / pipeline->rate_hz();
-    swapper->before_cycle(t);
-    const auto r = pipeline->run_cycle(t, true);
-    if (at_cycle_end) at_cycle_end();
-    swapper->after_cycle(t);
-    ++cycle;
-    return r;
-  }
-  /// A swap as the runner does it, with the allocations of the cycles in between counted.
+/// The swap rig, and swaps as the runner does them, with the allocations of the cycles in
+/// between counted.
+struct Rig : lode::test::SwapRig {
+  explicit Rig(const std::string& yaml, std::vector<std::string> extra_search = {})
+      : SwapRig(yaml, "kawato_planar_swap.yaml (test)", std::move(extra_search)) {}
   /// `at_boundary` runs at the end of every cycle (before the after_cycle hooks, where the
   /// exchange happens) until the swap is done.
   lode::SwapReport swap(const lode::SwapRequest& request, const std::function<void()>& at_boundary = {}) {
@@ -94,18 +75,7 @@ struct Rig {
     rt_allocations += lode::testing::allocation_count() - before;
     return swapper->finish(std::move(*prepared));
   }
-  std::vector<double> value(const std::string& signal) const {
-    auto s = pipeline->signal(signal);
-    return s ? std::vector<double>(s->data, s->data + s->size()) : std::vector<double>{};
-  }
 
-  std::unique_ptr<lode::PluginRegistry> registry;
-  lode::Diagnostics diagnostics;
-  lode::EventLog events;
-  std::unique_ptr<lode::Pipeline> pipeline;
-  std::unique_ptr<lode::HotSwap> swapper;
-  bool activated = false;
-  std::uint64_t cycle = 0;
   lode::Pipeline::CycleResult last;
   std::uint64_t rt_allocations = 0;
 };
