@@ -184,6 +184,22 @@ void expect_trip_event(const Outcome& r, std::size_t n, std::uint64_t cycle, con
   std::printf("event: %s\n", e.text.c_str());
 }
 
+/// The run ended with the outputs driven safe: `reason` tripped in `fault_cycle` with no
+/// fallback left, after the fallback took over on the same check in `takeover_cycle`
+/// (kNever: none was armed); one health event per trip.
+void expect_driven_safe(const Outcome& r, std::uint64_t takeover_cycle, std::uint64_t fault_cycle,
+                        const std::string& reason) {
+  ASSERT_TRUE(r.loaded);
+  EXPECT_EQ(r.takeover_cycle, takeover_cycle);
+  EXPECT_EQ(r.fault_cycle, fault_cycle);
+  EXPECT_EQ(r.fault_reason, reason);
+  EXPECT_TRUE(r.stage_safe);
+  const bool took_over = takeover_cycle != kNever;
+  ASSERT_EQ(r.health_events.size(), took_over ? 2u : 1u);
+  if (took_over) expect_trip_event(r, 0, takeover_cycle, reason, true);
+  expect_trip_event(r, took_over ? 1 : 0, fault_cycle, reason, false);
+}
+
 const std::string kNisReason = "innovation test failed (windowed mean NIS over threshold)";
 const std::string kCovarianceReason = "covariance not positive definite";
 const std::string kBudgetReason = "step time over budget";
@@ -237,25 +253,12 @@ TEST(HealthInnovation, StuckHallChannelTripsInItsFirstCycleAndTheFallbackTakesOv
 
 TEST(HealthInnovation, TheFallbackTripsAgainOnceItsWindowIsFullAndTheOutputsAreDrivenSafe) {
   const Outcome r = run(with_stuck_channel(kSwapConfig), 7500, 0);
-  ASSERT_TRUE(r.loaded);
-  EXPECT_EQ(r.takeover_cycle, 5000u);
-  EXPECT_EQ(r.fault_cycle, 5500u);
-  EXPECT_EQ(r.fault_reason, kNisReason);
-  EXPECT_TRUE(r.stage_safe);
-  ASSERT_EQ(r.health_events.size(), 2u);
-  expect_trip_event(r, 0, 5000, kNisReason, true);
-  expect_trip_event(r, 1, 5500, kNisReason, false);
+  expect_driven_safe(r, 5000, 5500, kNisReason);
 }
 
 TEST(HealthInnovation, WithoutAFallbackTheRunFaultsInTheTripCycle) {
   const Outcome r = run(without_fallback(with_stuck_channel(kSwapConfig)), 7500, 0);
-  ASSERT_TRUE(r.loaded);
-  EXPECT_EQ(r.takeover_cycle, kNever);
-  EXPECT_EQ(r.fault_cycle, 5000u);
-  EXPECT_EQ(r.fault_reason, kNisReason);
-  EXPECT_TRUE(r.stage_safe);
-  ASSERT_EQ(r.health_events.size(), 1u);
-  expect_trip_event(r, 0, 5000, kNisReason, false);
+  expect_driven_safe(r, kNever, 5000, kNisReason);
 }
 
 TEST(HealthInnovation, TripCyclesDoNotAllocate) {
@@ -298,24 +301,12 @@ TEST(HealthCovariance, ASecondIndefiniteCovarianceDrivesTheOutputsSafe) {
   const std::string yaml = coast_failing(kf_failing(kSwapConfig, "    indefinite_from_cycle: 3000\n"),
                                          "    indefinite_from_cycle: 4000\n");
   const Outcome r = run(yaml, 5000, 0);
-  ASSERT_TRUE(r.loaded);
-  EXPECT_EQ(r.takeover_cycle, 3000u);
-  EXPECT_EQ(r.fault_cycle, 4000u);
-  EXPECT_EQ(r.fault_reason, kCovarianceReason);
-  EXPECT_TRUE(r.stage_safe);
-  ASSERT_EQ(r.health_events.size(), 2u);
-  expect_trip_event(r, 0, 3000, kCovarianceReason, true);
-  expect_trip_event(r, 1, 4000, kCovarianceReason, false);
+  expect_driven_safe(r, 3000, 4000, kCovarianceReason);
 }
 
 TEST(HealthCovariance, WithoutAFallbackTheRunFaultsInTheTripCycle) {
   const Outcome r = run(without_fallback(kf_failing(kSwapConfig, "    indefinite_from_cycle: 3000\n")), 4000, 0);
-  ASSERT_TRUE(r.loaded);
-  EXPECT_EQ(r.fault_cycle, 3000u);
-  EXPECT_EQ(r.fault_reason, kCovarianceReason);
-  EXPECT_TRUE(r.stage_safe);
-  ASSERT_EQ(r.health_events.size(), 1u);
-  expect_trip_event(r, 0, 3000, kCovarianceReason, false);
+  expect_driven_safe(r, kNever, 3000, kCovarianceReason);
 }
 
 TEST(HealthCovariance, TripCyclesDoNotAllocate) {
@@ -354,24 +345,13 @@ TEST(HealthBudget, FourSlowStepsInARowDoNotTrip) {
 
 TEST(HealthBudget, ABudgetBelowTheEstimatorsCostTripsTheFallbackAgainAndDrivesTheOutputsSafe) {
   const Outcome r = run(replace(kSwapConfig, "    step_budget_us: 50\n", "    step_budget_us: 0.001\n"), 100, 0);
-  ASSERT_TRUE(r.loaded);
-  EXPECT_EQ(r.takeover_cycle, 4u);
-  EXPECT_EQ(r.fault_cycle, 9u) << "the over-budget count must restart when the fallback takes over";
-  EXPECT_EQ(r.fault_reason, kBudgetReason);
-  EXPECT_TRUE(r.stage_safe);
-  ASSERT_EQ(r.health_events.size(), 2u);
-  expect_trip_event(r, 0, 4, kBudgetReason, true);
-  expect_trip_event(r, 1, 9, kBudgetReason, false);
+  SCOPED_TRACE("the over-budget count must restart when the fallback takes over");
+  expect_driven_safe(r, 4, 9, kBudgetReason);
 }
 
 TEST(HealthBudget, WithoutAFallbackTheRunFaultsInTheTripCycle) {
   const Outcome r = run(without_fallback(kf_failing(kSwapConfig, kSlowFrom3000)), 4000, 0);
-  ASSERT_TRUE(r.loaded);
-  EXPECT_EQ(r.fault_cycle, 3004u);
-  EXPECT_EQ(r.fault_reason, kBudgetReason);
-  EXPECT_TRUE(r.stage_safe);
-  ASSERT_EQ(r.health_events.size(), 1u);
-  expect_trip_event(r, 0, 3004, kBudgetReason, false);
+  expect_driven_safe(r, kNever, 3004, kBudgetReason);
 }
 
 TEST(HealthBudget, APromotedShadowIsNotChargedWithTheOldPrimarysSlowSteps) {
