@@ -109,27 +109,6 @@ Status BiquadFilter::configure(ConfigureContext& ctx) {
   return bank_.install(ctx, coefficients, initially_enabled);
 }
 
-Status BiquadFilter::activate() { return bank_.activate(); }
-
-StepStatus BiquadFilter::step(const Tick& /*tick*/) noexcept {
-  const char* why = bank_.step();
-  return why == nullptr ? StepStatus::ok : fault(why);
-}
-
-std::vector<Tunable> BiquadFilter::tunables() const { return {filter::BiquadBank::enabled_tunable()}; }
-
-double BiquadFilter::tunable_value(std::size_t index) const noexcept {
-  return index == 0 ? bank_.enabled_value() : 0.0;
-}
-
-bool BiquadFilter::set_tunable(std::size_t index, double value, const char*& why) noexcept {
-  if (index != 0) {
-    why = "no such parameter";
-    return false;
-  }
-  return bank_.set_enabled_tunable(value, why);
-}
-
 void BiquadFilter::describe(Json& out) const {
   const double rate_hz = bank_.rate_hz();
   bank_.describe(

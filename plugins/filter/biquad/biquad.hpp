@@ -34,9 +34,8 @@
 #include <cstddef>
 #include <vector>
 
+#include "bank_filter.hpp"
 #include "biquad_bank.hpp"
-#include "lode/sdk/block.hpp"
-#include "lode/sdk/tunables.hpp"
 
 namespace lode::plugins {
 
@@ -60,26 +59,16 @@ struct ChannelDesign {
 
 }  // namespace biquad
 
-class BiquadFilter final : public Block, public Tunables {
+// activate(), step(), the bypass (set_enabled()) and `lode set enabled` are the bank's:
+// filter::BankFilter.
+class BiquadFilter final : public filter::BankFilter {
  public:
+  BiquadFilter() noexcept : BankFilter("filter.biquad", "non-finite biquad state") {}
+
   Status configure(ConfigureContext& ctx) override;
-  Status activate() override;
-  StepStatus step(const Tick& tick) noexcept override;
   void describe(Json& out) const override;
 
-  /// Enable (filter) or bypass (out = in) every filtered channel, or one channel (false if it
-  /// is not filtered): filter::BiquadBank::set_enabled. Any thread, RT-safe.
-  void set_enabled(bool enabled) noexcept { bank_.set_enabled(enabled); }
-  bool set_enabled(std::size_t channel, bool enabled) noexcept { return bank_.set_enabled(channel, enabled); }
-  [[nodiscard]] bool enabled(std::size_t channel) const noexcept { return bank_.enabled(channel); }
-
-  /// `lode set`: enabled (bool, index 0).
-  [[nodiscard]] std::vector<Tunable> tunables() const override;
-  [[nodiscard]] double tunable_value(std::size_t index) const noexcept override;
-  bool set_tunable(std::size_t index, double value, const char*& why) noexcept override;
-
  private:
-  filter::BiquadBank bank_{"filter.biquad", "non-finite biquad state"};
   std::vector<biquad::ChannelDesign> designs_;  ///< one per filtered channel, in input order
 };
 

@@ -105,16 +105,8 @@ Status NotchFilter::configure(ConfigureContext& ctx) {
   return bank_.install(ctx, coefficients, initially_enabled);
 }
 
-Status NotchFilter::activate() { return bank_.activate(); }
-
-StepStatus NotchFilter::step(const Tick& /*tick*/) noexcept {
-  const char* why = bank_.step();
-  return why == nullptr ? StepStatus::ok : fault(why);
-}
-
 std::vector<Tunable> NotchFilter::tunables() const {
-  std::vector<Tunable> out;
-  out.push_back(filter::BiquadBank::enabled_tunable());
+  std::vector<Tunable> out = BankFilter::tunables();
   if (!designed_) return out;  // raw coefficients: nothing to redesign from
   const double nyquist_hz = 0.5 * bank_.rate_hz();
   out.push_back({"f_notch_hz", "Hz", 0.0, nyquist_hz,
@@ -138,7 +130,7 @@ double NotchFilter::tunable_value(std::size_t index) const noexcept {
 }
 
 bool NotchFilter::set_tunable(std::size_t index, double value, const char*& why) noexcept {
-  if (index == kEnabled) return bank_.set_enabled_tunable(value, why);
+  if (index == kEnabled) return BankFilter::set_tunable(index, value, why);
   if (!designed_ || index > kDamping) {
     why = designed_ ? "no such parameter" : "raw coefficients: only enabled is tunable";
     return false;

@@ -43,9 +43,8 @@
 #include <cstddef>
 #include <vector>
 
+#include "bank_filter.hpp"
 #include "biquad_bank.hpp"
-#include "lode/sdk/block.hpp"
-#include "lode/sdk/tunables.hpp"
 
 namespace lode::plugins {
 
@@ -71,29 +70,23 @@ struct ChannelDesign {
 
 }  // namespace notch
 
-class NotchFilter final : public Block, public Tunables {
+// activate(), step() and the bypass (set_enabled()) are the bank's: filter::BankFilter.
+class NotchFilter final : public filter::BankFilter {
  public:
+  NotchFilter() noexcept : BankFilter("filter.notch", "non-finite notch state") {}
+
   Status configure(ConfigureContext& ctx) override;
-  Status activate() override;
-  StepStatus step(const Tick& tick) noexcept override;
   void describe(Json& out) const override;
 
-  /// Enable (filter) or bypass (out = in) every filtered channel, or one channel (false if it
-  /// is not filtered): filter::BiquadBank::set_enabled. Any thread, RT-safe.
-  void set_enabled(bool enabled) noexcept { bank_.set_enabled(enabled); }
-  bool set_enabled(std::size_t channel, bool enabled) noexcept { return bank_.set_enabled(channel, enabled); }
-  [[nodiscard]] bool enabled(std::size_t channel) const noexcept { return bank_.enabled(channel); }
-
-  /// `lode set`: enabled (bool), and for a designed notch f_notch_hz, k, zeta.
+  /// `lode set`: enabled (bool, the bank's), and for a designed notch f_notch_hz, k, zeta.
   [[nodiscard]] std::vector<Tunable> tunables() const override;
   [[nodiscard]] double tunable_value(std::size_t index) const noexcept override;
   bool set_tunable(std::size_t index, double value, const char*& why) noexcept override;
 
  private:
-  enum TunableIndex : std::size_t { kEnabled = 0, kFrequency = 1, kDepth = 2, kDamping = 3 };
+  enum TunableIndex : std::size_t { kFrequency = kEnabled + 1, kDepth, kDamping };
 
   bool designed_ = false;  ///< f_notch_hz, k, zeta exist (not raw coefficients)
-  filter::BiquadBank bank_{"filter.notch", "non-finite notch state"};
   std::vector<notch::ChannelDesign> designs_;  ///< one per filtered channel, in input order
 };
 

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 
-#include "board_ports.hpp"
 #include "lode/sdk/clock.hpp"
 #include "lode/sdk/plugin.hpp"
 #include "lode/sdk/units.hpp"
@@ -98,12 +97,11 @@ Status SocketCanDaq::configure(ConfigureContext& ctx) {
   pdo_timeout_ns_ = static_cast<std::int64_t>(pdo_us * 1e3);
   tpdo_ = parse_pdos(params, "tpdo", false);
   rpdo_ = params.has("rpdo") ? parse_pdos(params, "rpdo", true) : std::vector<can_daq::Pdo>{};
-  input_count_ = output_count_ = 0;
-  for (const auto& p : tpdo_) input_count_ += p.channels.size();
+  output_count_ = 0;
   for (const auto& p : rpdo_) output_count_ += p.channels.size();
   tpdo_seen_.assign(tpdo_.size(), 0);
   raw_.assign(8, 0);
-  boards::declare_board_ports(ctx, command_, signals_, counts_, elements_of(rpdo_), elements_of(tpdo_));
+  declare_ports(ctx, elements_of(rpdo_), elements_of(tpdo_));
   return {};
 }
 
@@ -145,7 +143,7 @@ Status SocketCanDaq::activate() {
     socket_.wait_readable(deadline - now);
   }
   last_heartbeat_ns_ = monotonic_ns();
-  for (std::size_t i = 0; i < input_count_; ++i) signals_[i] = counts_[i] = 0.0;
+  zero_inputs();
   return {};
 }
 

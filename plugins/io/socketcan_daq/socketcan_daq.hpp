@@ -28,15 +28,14 @@
 #include <string>
 #include <vector>
 
+#include "acquisition_board.hpp"
 #include "daq_mapping.hpp"
-#include "lode/sdk/block.hpp"
-#include "lode/sdk/board.hpp"
 #include "lode/sdk/histogram.hpp"
 #include "lode/hal/can_socket.hpp"
 
 namespace lode::plugins {
 
-class SocketCanDaq final : public Block, public Board {
+class SocketCanDaq final : public boards::AcquisitionBoard {
  public:
   Status configure(ConfigureContext& ctx) override;
   Status activate() override;
@@ -63,7 +62,7 @@ class SocketCanDaq final : public Block, public Board {
   std::int64_t heartbeat_timeout_ns_ = 0;
   std::int64_t pdo_timeout_ns_ = 0;
   std::vector<can_daq::Pdo> tpdo_, rpdo_;
-  std::size_t input_count_ = 0, output_count_ = 0;
+  std::size_t output_count_ = 0;
 
   hal::CanSocket socket_;
   std::int64_t last_heartbeat_ns_ = 0;
@@ -74,9 +73,6 @@ class SocketCanDaq final : public Block, public Board {
   /// module's and the bus's share of the read phase, apart from this thread's scheduling.
   Histogram sync_to_tpdo_;
   std::atomic<std::uint16_t> emcy_code_{0};
-
-  InputPort command_;
-  OutputPort signals_, counts_;
 };
 
 }  // namespace lode::plugins

@@ -3,7 +3,6 @@
 #include <cmath>
 #include <cstdio>
 
-#include "board_ports.hpp"
 #include "lode/sdk/clock.hpp"
 #include "lode/sdk/plugin.hpp"
 #include "lode/sdk/units.hpp"
@@ -80,7 +79,7 @@ Status VmePentekBoard::configure(ConfigureContext& ctx) {
   dac_conv_.clear();
   for (const auto& c : adc_) adc_conv_.emplace_back(c);
   for (const auto& c : dac_) dac_conv_.emplace_back(c);
-  boards::declare_board_ports(ctx, command_, signals_, counts_, elements_of(dac_), elements_of(adc_));
+  declare_ports(ctx, elements_of(dac_), elements_of(adc_));
   return {};
 }
 
@@ -117,7 +116,7 @@ Status VmePentekBoard::activate() {
   dac_clips_.store(0, std::memory_order_relaxed);
   drive_safe();  // outputs start at their safe values
   dac_load_pending_ = false;  // the board need not have latched them before the first cycle
-  for (std::size_t i = 0; i < adc_.size(); ++i) signals_[i] = counts_[i] = 0.0;
+  zero_inputs();
   return {};
 }
 

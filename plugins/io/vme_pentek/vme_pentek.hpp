@@ -27,15 +27,14 @@
 #include <string>
 #include <vector>
 
-#include "lode/sdk/block.hpp"
-#include "lode/sdk/board.hpp"
+#include "acquisition_board.hpp"
 #include "lode/hal/analog.hpp"
 #include "lode/hal/register_window.hpp"
 #include "regmap.hpp"
 
 namespace lode::plugins {
 
-class VmePentekBoard final : public Block, public Board {
+class VmePentekBoard final : public boards::AcquisitionBoard {
  public:
   Status configure(ConfigureContext& ctx) override;
   Status activate() override;
@@ -66,9 +65,6 @@ class VmePentekBoard final : public Block, public Board {
   bool dac_load_pending_ = false;
   std::atomic<std::uint32_t> last_status_{0};
   std::atomic<std::uint64_t> dac_clips_{0};
-
-  InputPort command_;
-  OutputPort signals_, counts_;
 };
 
 }  // namespace lode::plugins

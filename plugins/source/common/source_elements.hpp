@@ -3,7 +3,8 @@
 // it rests at), their per-element runtime parameters (`lode set offset.x`), and reading time
 // parameters against the scheduled tick time.
 //
-// The family's library (lode_source_common); a source links it and includes
+// The family's library (lode_source_common); a source links it, derives from
+// source::ElementSource ("element_source.hpp"), which holds its SourceOutput, and includes
 // "source_elements.hpp". Everything here runs in configure(), except where a function says
 // RT-safe.
 #pragma once

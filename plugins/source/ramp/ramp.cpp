@@ -22,11 +22,10 @@ Status RampSource::configure(ConfigureContext& ctx) {
 }
 
 Status RampSource::activate() {
-  output_.write_offset();
   std::fill(rate_origin_ns_.begin(), rate_origin_ns_.end(), 0);
   std::fill(value_at_origin_.begin(), value_at_origin_.end(), 0.0);
   last_ramp_ns_ = 0;
-  return Status::ok();
+  return source::ElementSource::activate();  // out = offset
 }
 
 StepStatus RampSource::step(const Tick& tick) noexcept {
@@ -41,10 +40,6 @@ StepStatus RampSource::step(const Tick& tick) noexcept {
   }
   return StepStatus::ok;
 }
-
-std::vector<Tunable> RampSource::tunables() const { return output_.tunables(); }
-
-double RampSource::tunable_value(std::size_t index) const noexcept { return output_.tunable_value(index); }
 
 bool RampSource::set_tunable(std::size_t index, double value, const char*& why) noexcept {
   std::size_t group = 0, element = 0;

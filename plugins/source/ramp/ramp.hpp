@@ -19,13 +19,12 @@
 #include <cstdint>
 #include <vector>
 
-#include "lode/sdk/block.hpp"
-#include "lode/sdk/tunables.hpp"
+#include "element_source.hpp"
 #include "source_elements.hpp"
 
 namespace lode::plugins {
 
-class RampSource final : public Block, public Tunables {
+class RampSource final : public source::ElementSource {
  public:
   Status configure(ConfigureContext& ctx) override;
   Status activate() override;
@@ -34,14 +33,11 @@ class RampSource final : public Block, public Tunables {
 
   /// `lode set`: offset.<element> and rate.<element>. A new rate bends the ramp at the last
   /// sample (the output stays continuous; only its slope changes), see rate_origin_ns_.
-  [[nodiscard]] std::vector<Tunable> tunables() const override;
-  [[nodiscard]] double tunable_value(std::size_t index) const noexcept override;
   bool set_tunable(std::size_t index, double value, const char*& why) noexcept override;
 
  private:
   enum TunableGroup : std::size_t { kOffset = source::SourceOutput::kOffsetGroup, kRate };
 
-  source::SourceOutput output_;
   std::vector<double> rate_;  ///< element unit per second
   std::int64_t start_ns_ = 0;
   bool has_duration_ = false;

@@ -43,11 +43,10 @@ Status SineSource::configure(ConfigureContext& ctx) {
 }
 
 Status SineSource::activate() {
-  output_.write_offset();
   std::fill(phase_origin_ns_.begin(), phase_origin_ns_.end(), 0);
   std::fill(cycles_at_origin_.begin(), cycles_at_origin_.end(), 0.0);
   last_tau_ns_ = 0;
-  return Status::ok();
+  return source::ElementSource::activate();  // out = offset
 }
 
 StepStatus SineSource::step(const Tick& tick) noexcept {
@@ -71,10 +70,6 @@ StepStatus SineSource::step(const Tick& tick) noexcept {
   }
   return StepStatus::ok;
 }
-
-std::vector<Tunable> SineSource::tunables() const { return output_.tunables(); }
-
-double SineSource::tunable_value(std::size_t index) const noexcept { return output_.tunable_value(index); }
 
 bool SineSource::set_tunable(std::size_t index, double value, const char*& why) noexcept {
   std::size_t group = 0, element = 0;

@@ -17,13 +17,12 @@
 #include <cstdint>
 #include <vector>
 
-#include "lode/sdk/block.hpp"
-#include "lode/sdk/tunables.hpp"
+#include "element_source.hpp"
 #include "source_elements.hpp"
 
 namespace lode::plugins {
 
-class SineSource final : public Block, public Tunables {
+class SineSource final : public source::ElementSource {
  public:
   Status configure(ConfigureContext& ctx) override;
   Status activate() override;
@@ -32,14 +31,11 @@ class SineSource final : public Block, public Tunables {
 
   /// `lode set`: offset.<element>, amplitude.<element>, frequency_hz.<element> (0 ... rate/2).
   /// A new frequency continues from the phase of the last sample (no phase jump).
-  [[nodiscard]] std::vector<Tunable> tunables() const override;
-  [[nodiscard]] double tunable_value(std::size_t index) const noexcept override;
   bool set_tunable(std::size_t index, double value, const char*& why) noexcept override;
 
  private:
   enum TunableGroup : std::size_t { kOffset = source::SourceOutput::kOffsetGroup, kAmplitude, kFrequency };
 
-  source::SourceOutput output_;
   double nyquist_hz_ = 0.0;
   std::vector<double> amplitude_;
   std::vector<double> frequency_hz_;

@@ -31,11 +31,6 @@ Status StepSource::configure(ConfigureContext& ctx) {
   return output_.declare(ctx);
 }
 
-Status StepSource::activate() {
-  output_.write_offset();
-  return Status::ok();
-}
-
 StepStatus StepSource::step(const Tick& tick) noexcept {
   // Number of steps whose time has come; binary search, no state, so any tick order works.
   const auto reached = static_cast<std::size_t>(
@@ -46,15 +41,6 @@ StepStatus StepSource::step(const Tick& tick) noexcept {
   OutputPort& out = output_.port();
   for (std::size_t i = 0; i < size; ++i) out[i] = value[i];
   return StepStatus::ok;
-}
-
-std::vector<Tunable> StepSource::tunables() const { return output_.tunables(); }
-
-double StepSource::tunable_value(std::size_t index) const noexcept { return output_.tunable_value(index); }
-
-bool StepSource::set_tunable(std::size_t index, double value, const char*& why) noexcept {
-  // step() reads the offset afresh each cycle: the next sample before the first step uses it.
-  return output_.set_tunable(index, value, why);
 }
 
 void StepSource::describe(Json& out) const {

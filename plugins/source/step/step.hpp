@@ -18,26 +18,22 @@
 #include <cstdint>
 #include <vector>
 
-#include "lode/sdk/block.hpp"
-#include "lode/sdk/tunables.hpp"
+#include "element_source.hpp"
 #include "source_elements.hpp"
 
 namespace lode::plugins {
 
-class StepSource final : public Block, public Tunables {
+class StepSource final : public source::ElementSource {
  public:
   Status configure(ConfigureContext& ctx) override;
-  Status activate() override;
   StepStatus step(const Tick& tick) noexcept override;
   void describe(Json& out) const override;
 
-  /// `lode set`: offset.<element> (the value before the first step).
-  [[nodiscard]] std::vector<Tunable> tunables() const override;
-  [[nodiscard]] double tunable_value(std::size_t index) const noexcept override;
-  bool set_tunable(std::size_t index, double value, const char*& why) noexcept override;
+  // `lode set`: offset.<element> (the value before the first step), stored by
+  // ElementSource::set_tunable(): step() reads the offset afresh each cycle, so the next
+  // sample before the first step uses it.
 
  private:
-  source::SourceOutput output_;
   std::vector<std::int64_t> step_time_ns_;  ///< strictly increasing
   std::vector<double> step_values_;         ///< row-major: step x element
 };

@@ -37,11 +37,6 @@ Status ZigzagSource::configure(ConfigureContext& ctx) {
   return output_.declare(ctx);
 }
 
-Status ZigzagSource::activate() {
-  output_.write_offset();
-  return Status::ok();
-}
-
 StepStatus ZigzagSource::step(const Tick& tick) noexcept {
   std::int64_t tau_ns = tick.time_ns - start_ns_;
   if (tau_ns < 0) {
@@ -62,16 +57,6 @@ StepStatus ZigzagSource::step(const Tick& tick) noexcept {
     out[i] = offset[i] + amplitude_[i] * sweep + advance_[i] * progress;
   }
   return StepStatus::ok;
-}
-
-std::vector<Tunable> ZigzagSource::tunables() const { return output_.tunables(); }
-
-double ZigzagSource::tunable_value(std::size_t index) const noexcept { return output_.tunable_value(index); }
-
-bool ZigzagSource::set_tunable(std::size_t index, double value, const char*& why) noexcept {
-  // step() is a function of time only: the path from the next sample on is the one the new
-  // value describes (a new amplitude rescales the current sweep position).
-  return output_.set_tunable(index, value, why);
 }
 
 void ZigzagSource::describe(Json& out) const {

@@ -27,26 +27,23 @@
 #include <cstdint>
 #include <vector>
 
-#include "lode/sdk/block.hpp"
-#include "lode/sdk/tunables.hpp"
+#include "element_source.hpp"
 #include "source_elements.hpp"
 
 namespace lode::plugins {
 
-class ZigzagSource final : public Block, public Tunables {
+class ZigzagSource final : public source::ElementSource {
  public:
   Status configure(ConfigureContext& ctx) override;
-  Status activate() override;
   StepStatus step(const Tick& tick) noexcept override;
   void describe(Json& out) const override;
 
-  /// `lode set`: offset.<element> and amplitude.<element>, from the next sample on.
-  [[nodiscard]] std::vector<Tunable> tunables() const override;
-  [[nodiscard]] double tunable_value(std::size_t index) const noexcept override;
-  bool set_tunable(std::size_t index, double value, const char*& why) noexcept override;
+  // `lode set`: offset.<element> and amplitude.<element>, stored by
+  // ElementSource::set_tunable(). step() is a function of time only: the path from the next
+  // sample on is the one the new value describes (a new amplitude rescales the current sweep
+  // position).
 
  private:
-  source::SourceOutput output_;
   std::vector<double> amplitude_;
   std::vector<double> advance_;
   std::int64_t period_ns_ = 0;

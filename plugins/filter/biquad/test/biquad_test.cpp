@@ -178,11 +178,7 @@ TEST(FilterBiquadTunables, EnabledIsABoolAndSwitchesBypassAtTheNextStep) {
   ASSERT_TRUE(h.activate());
   const std::vector<Tunable> t = h.tunables().tunables();
   ASSERT_EQ(t.size(), 1u);
-  EXPECT_EQ(t[0].name, "enabled");
-  EXPECT_EQ(t[0].unit, "bool");
-  EXPECT_TRUE(t[0].integer);
-  EXPECT_EQ(t[0].min, 0.0);
-  EXPECT_EQ(t[0].max, 1.0);
+  filter::testing::expect_enabled_tunable(t[0]);
   EXPECT_EQ(h.tunables().tunable_value(0), 1.0);
   const auto in = h.input("in");
   in[0] = in[1] = 1.0;
@@ -223,16 +219,14 @@ TEST(FilterBiquadTunables, SetTunableAllocatesNothing) {
   h.feed("in", {{"x", "m"}, {"y", "m"}});
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   ASSERT_TRUE(h.activate());
-  Tunables& block = h.tunables();
   const auto in = h.input("in");
   const char* why = "";
-  int accepted = 0;
-  filter::testing::expect_cycles_allocate_nothing(h, 1000, [&](int k) {
-    accepted += block.set_tunable(0, (k % 2) ? 1.0 : 0.0, why) ? 1 : 0;
+  filter::testing::expect_set_tunables_allocate_nothing(h, 1000, 1000, [&](Tunables& block, int k) {
+    const int accepted = block.set_tunable(0, (k % 2) ? 1.0 : 0.0, why) ? 1 : 0;
     (void)block.set_tunable(0, 0.5, why);
     in[0] = std::sin(0.4 * k);
+    return accepted;
   });
-  EXPECT_EQ(accepted, 1000);
 }
 
 }  // namespace

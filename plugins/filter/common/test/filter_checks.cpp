@@ -50,4 +50,20 @@ void expect_cycles_allocate_nothing(lode::testing::BlockHarness& h, int cycles, 
   EXPECT_EQ(failed_steps, 0);
 }
 
+void expect_set_tunables_allocate_nothing(lode::testing::BlockHarness& h, int cycles, int expected_accepted,
+                                          const std::function<int(Tunables& block, int k)>& cycle) {
+  Tunables& block = h.tunables();
+  int accepted = 0;
+  expect_cycles_allocate_nothing(h, cycles, [&](int k) { accepted += cycle(block, k); });
+  EXPECT_EQ(accepted, expected_accepted);
+}
+
+void expect_enabled_tunable(const Tunable& t) {
+  EXPECT_EQ(t.name, "enabled");
+  EXPECT_EQ(t.unit, "bool");
+  EXPECT_TRUE(t.integer);
+  EXPECT_EQ(t.min, 0.0);
+  EXPECT_EQ(t.max, 1.0);
+}
+
 }  // namespace lode::plugins::filter::testing

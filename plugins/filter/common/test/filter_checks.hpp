@@ -1,6 +1,7 @@
 // Measurements the filter plugins' tests share: the amplitude and phase of one frequency in a
-// sampled signal, a filter's steady-state gain measured with a sine, and that running cycles
-// (inputs written, runtime parameters set) allocates nothing.
+// sampled signal, a filter's steady-state gain measured with a sine, the bank's `enabled`
+// runtime parameter, and that running cycles (inputs written, runtime parameters set)
+// allocates nothing.
 #pragma once
 
 #include <complex>
@@ -8,6 +9,7 @@
 #include <vector>
 
 #include "lode/sdk/json.hpp"
+#include "lode/sdk/tunables.hpp"
 #include "lode/sdk/math/discretize.hpp"
 #include "lode/sdk/testing/harness.hpp"
 
@@ -28,5 +30,14 @@ double measured_gain(lode::testing::BlockHarness& h, double f_hz, double rate_hz
 /// On an activated filter, `cycles` cycles of `cycle(k)` (write the inputs, set runtime
 /// parameters) and step(): every step() succeeds and none of it allocates.
 void expect_cycles_allocate_nothing(lode::testing::BlockHarness& h, int cycles, const std::function<void(int k)>& cycle);
+
+/// The same with runtime parameters: `cycle(block, k)` sets them (and writes the inputs) and
+/// returns how many of its set_tunable() calls were accepted; over all cycles that must be
+/// `expected_accepted`.
+void expect_set_tunables_allocate_nothing(lode::testing::BlockHarness& h, int cycles, int expected_accepted,
+                                          const std::function<int(Tunables& block, int k)>& cycle);
+
+/// `t` is the bank's `enabled` switch: a bool, an integer in [0, 1].
+void expect_enabled_tunable(const Tunable& t);
 
 }  // namespace lode::plugins::filter::testing

@@ -252,11 +252,7 @@ TEST(FilterNotchTunables, DesignedNotchOffersEnabledFrequencyKAndZeta) {
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   const std::vector<Tunable> t = h.tunables().tunables();
   ASSERT_EQ(t.size(), 4u);
-  EXPECT_EQ(t[0].name, "enabled");
-  EXPECT_EQ(t[0].unit, "bool");
-  EXPECT_TRUE(t[0].integer);
-  EXPECT_EQ(t[0].min, 0.0);
-  EXPECT_EQ(t[0].max, 1.0);
+  filter::testing::expect_enabled_tunable(t[0]);
   EXPECT_EQ(t[1].name, "f_notch_hz");
   EXPECT_EQ(t[1].unit, "Hz");
   EXPECT_EQ(t[1].min, 0.0);
@@ -421,18 +417,16 @@ TEST(FilterNotchTunables, SetTunableAllocatesNothing) {
   h.feed("in", kPlanar);
   ASSERT_TRUE(h.configure()) << h.diagnostics();
   ASSERT_TRUE(h.activate());
-  Tunables& block = h.tunables();
   const auto in = h.input("in");
   const char* why = "";
-  int accepted = 0;
-  filter::testing::expect_cycles_allocate_nothing(h, 1000, [&](int k) {
-    accepted += block.set_tunable(1, (k % 2) ? 50.0 : 60.0, why) ? 1 : 0;
+  filter::testing::expect_set_tunables_allocate_nothing(h, 1000, 3000, [&](Tunables& block, int k) {
+    int accepted = block.set_tunable(1, (k % 2) ? 50.0 : 60.0, why) ? 1 : 0;
     accepted += block.set_tunable(3, (k % 2) ? 0.5 : 0.3, why) ? 1 : 0;
     accepted += block.set_tunable(0, (k % 3) ? 1.0 : 0.0, why) ? 1 : 0;
     (void)block.set_tunable(1, 400.0, why);
     in[0] = std::sin(0.3 * k);
+    return accepted;
   });
-  EXPECT_EQ(accepted, 3000);
 }
 
 }  // namespace
