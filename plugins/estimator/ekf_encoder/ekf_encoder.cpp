@@ -1,13 +1,12 @@
 #include "ekf_encoder.hpp"
 
 #include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
 #include <cmath>
-#include <complex>
 #include <numbers>
 #include <string>
 
 #include "estimator/describe_json.hpp"
+#include "estimator/position_gain.hpp"
 #include "lode/sdk/plugin.hpp"
 #include "lode/sdk/text.hpp"
 #include "lode/sdk/units.hpp"
@@ -15,6 +14,9 @@
 namespace lode::plugins {
 
 namespace ekf_encoder {
+
+// estimator::i_minus_kh() and error_poles() take the measured state to be the first.
+static_assert(kPosition == 0);
 
 namespace {
 
@@ -125,8 +127,7 @@ SteadyState steady_state(const StateMatrix& transition, const StateMatrix& proce
   for (int iteration = 1; iteration <= kRiccatiMaxIterations; ++iteration) {
     // eq. 15-16 with a scalar position measurement of variance r_eq (Joseph form), then 13.
     const StateVector gain = prior.col(kPosition) / (prior(kPosition, kPosition) + position_variance);
-    StateMatrix i_minus_kh = StateMatrix::Identity();
-    i_minus_kh.col(kPosition) -= gain;
+    const StateMatrix i_minus_kh = estimator::i_minus_kh(gain);
     StateMatrix posterior = i_minus_kh * prior * i_minus_kh.transpose() +
                             (gain * position_variance) * gain.transpose();
     posterior = 0.5 * (posterior + posterior.transpose()).eval();
@@ -138,27 +139,14 @@ SteadyState steady_state(const StateMatrix& transition, const StateMatrix& proce
     result.iterations = iteration;
     if (!next.allFinite()) break;
     const StateVector std = posterior.diagonal().cwiseMax(0.0).cwiseSqrt();
-    bool settled = iteration > 1;
-    for (int i = 0; i < kStateSize && settled; ++i) {
-      settled = std::abs(std(i) - previous_std(i)) <= kRiccatiTolerance * std::abs(std(i));
-    }
-    if (settled) {
+    if (iteration > 1 && estimator::settled(std, previous_std, kRiccatiTolerance)) {
       result.converged = true;
       break;
     }
     previous_std = std;
     prior = next;
   }
-  StateMatrix i_minus_kh = StateMatrix::Identity();
-  i_minus_kh.col(kPosition) -= result.gain;
-  const StateMatrix error_dynamics = transition * i_minus_kh;  // a-priori error e(k+1|k)
-  if (error_dynamics.allFinite()) {
-    Eigen::EigenSolver<StateMatrix> solver(error_dynamics, false);
-    for (int i = 0; i < kStateSize; ++i) {
-      const std::complex<double> z = solver.eigenvalues()(i);
-      result.poles[static_cast<std::size_t>(i)] = {z.real(), z.imag()};
-    }
-  }
+  result.poles = estimator::error_poles(transition, result.gain);  // a-priori error e(k+1|k)
   return result;
 }
 
@@ -209,8 +197,7 @@ bool Filter::update(const double* measured, const double* predicted, const doubl
   const StateVector p_col = p_.col(kPosition);
   const StateVector x_next = x_ + p_col * wv;  // eq. 14
   // eq. 16 (Joseph): K H = (P e1 w'h) e1' and K R K' = (w'Rw) P e1 e1' P.
-  StateMatrix i_minus_kh = StateMatrix::Identity();
-  i_minus_kh.col(kPosition) -= p_col * wh;
+  const StateMatrix i_minus_kh = estimator::i_minus_kh(p_col * wh);
   StateMatrix p_next = i_minus_kh * p_ * i_minus_kh.transpose() + (wrw * p_col) * p_col.transpose();
   p_next = 0.5 * (p_next + p_next.transpose()).eval();
 
@@ -417,17 +404,7 @@ void EkfEncoder::describe(Json& out) const {
   steady["posterior_covariance"] = matrix_json(ss.posterior_cov);
   steady["gain"] = std::vector<double>{ss.gain(0), ss.gain(1), ss.gain(2)};
   steady["gain_units"] = "1, 1/s, 1/s^2 (per metre of position innovation)";
-  Json poles = Json::array();
-  for (const auto& z : ss.poles) {
-    const std::complex<double> pole(z[0], z[1]);
-    Json p = Json::object();
-    p["re"] = z[0];
-    p["im"] = z[1];
-    p["abs"] = std::abs(pole);
-    p["continuous_hz"] = std::abs(std::log(pole)) / (2.0 * std::numbers::pi * period_s_);
-    poles.push(std::move(p));
-  }
-  steady["error_poles_z"] = std::move(poles);
+  steady["error_poles_z"] = estimator::error_poles_json(ss.poles, period_s_, estimator::PoleRate::hz);
   out["steady_state"] = std::move(steady);
 }
 

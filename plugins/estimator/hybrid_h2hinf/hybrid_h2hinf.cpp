@@ -13,6 +13,7 @@
 
 #include "estimator/describe_json.hpp"
 #include "estimator/per_axis.hpp"
+#include "estimator/position_gain.hpp"
 #include "lode/sdk/math/riccati.hpp"
 #include "lode/sdk/plugin.hpp"
 #include "lode/sdk/units.hpp"
@@ -91,11 +92,7 @@ HinfDesign design_hinf(const AxisModel& model, const HinfWeights& weights, const
     }
     out.gain = gain;
     out.cov = p;
-    bool settled = iteration > 1;
-    for (int i = 0; i < 3 && settled; ++i) {
-      settled = std::abs(gain(i) - previous_gain(i)) <= kRiccatiTolerance * std::abs(gain(i));
-    }
-    if (settled) {
+    if (iteration > 1 && estimator::settled(gain, previous_gain, kRiccatiTolerance)) {
       out.definiteness_margin =
           Eigen::SelfAdjointEigenSolver<Matrix3>(margin, Eigen::EigenvaluesOnly).eigenvalues()(0);
       out.outcome = HinfDesign::Outcome::converged;
@@ -129,17 +126,13 @@ double max_feasible_theta(const AxisModel& model, HinfWeights weights, const Mat
 }
 
 double error_spectral_radius(const AxisModel& model, const Vector3& gain) {
-  Matrix3 i_minus_kh = Matrix3::Identity();
-  i_minus_kh.col(0) -= gain;
-  const Matrix3 error_dynamics = i_minus_kh * model.phi;
+  const Matrix3 error_dynamics = estimator::i_minus_kh(gain) * model.phi;
   if (!error_dynamics.allFinite()) return std::numeric_limits<double>::infinity();
   return Eigen::EigenSolver<Matrix3>(error_dynamics, false).eigenvalues().cwiseAbs().maxCoeff();
 }
 
 bool blended_prior_covariance(const AxisModel& model, const Vector3& gain, double q, double r, Matrix3& cov) noexcept {
-  Matrix3 i_minus_kh = Matrix3::Identity();
-  i_minus_kh.col(0) -= gain;
-  Matrix3 a = model.phi * i_minus_kh;
+  Matrix3 a = model.phi * estimator::i_minus_kh(gain);
   const Vector3 phi_k = model.phi * gain;
   Matrix3 p = (phi_k * r) * phi_k.transpose() + (model.upsilon * q) * model.upsilon.transpose();
   // 64 doublings sum 2^64 terms: converged for any rho(A) < 1 - 1e-18. Stop as soon as the
@@ -168,9 +161,7 @@ PositionResponse position_response(const AxisModel& model, const Vector3& gain, 
   using Complex = std::complex<double>;
   using ComplexMatrix3 = Eigen::Matrix<Complex, 3, 3>;
   using ComplexVector3 = Eigen::Matrix<Complex, 3, 1>;
-  Matrix3 i_minus_kh = Matrix3::Identity();
-  i_minus_kh.col(0) -= gain;
-  const ComplexMatrix3 a = (i_minus_kh * model.phi).cast<Complex>();
+  const ComplexMatrix3 a = (estimator::i_minus_kh(gain) * model.phi).cast<Complex>();
   const ComplexVector3 k = gain.cast<Complex>();
   const double nyquist_hz = 0.5 / t_s;
   const auto magnitude = [&](double f_hz) {

@@ -1,9 +1,7 @@
 #include "kalman.hpp"
 
 #include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
 #include <algorithm>
-#include <complex>
 #include <cstdio>
 #include <string>
 
@@ -35,11 +33,7 @@ SteadyState<N> steady_state(const AxisModel<N>& model, double r, double p0) {
     result.iterations = iteration;
     if (!gain.allFinite() || !next.allFinite()) break;
     // Converged when no gain element moved by more than kRiccatiTolerance of itself.
-    bool settled = iteration > 1;
-    for (int i = 0; i < N && settled; ++i) {
-      settled = std::abs(gain(i) - previous_gain(i)) <= kRiccatiTolerance * std::abs(gain(i));
-    }
-    if (settled) {
+    if (iteration > 1 && estimator::settled(gain, previous_gain, kRiccatiTolerance)) {
       result.converged = true;
       break;
     }
@@ -48,16 +42,7 @@ SteadyState<N> steady_state(const AxisModel<N>& model, double r, double p0) {
   }
 
   // A-priori error dynamics e^-_{k+1} = Phi (I - K H) e^-_k.
-  Matrix i_minus_kh = Matrix::Identity();
-  i_minus_kh.col(0) -= result.gain;
-  const Matrix error_dynamics = model.phi * i_minus_kh;
-  if (error_dynamics.allFinite()) {
-    Eigen::EigenSolver<Matrix> solver(error_dynamics, false);
-    for (int i = 0; i < N; ++i) {
-      const std::complex<double> z = solver.eigenvalues()(i);
-      result.poles[static_cast<std::size_t>(i)] = {z.real(), z.imag()};
-    }
-  }
+  result.poles = estimator::error_poles(model.phi, result.gain);
   return result;
 }
 
@@ -301,17 +286,7 @@ void KalmanEstimator::describe_axes(const std::array<kalman::AxisFilter<N>, kMax
       s["converged"] = ss.converged;
       s["iterations"] = ss.iterations;
       s["tolerance"] = "relative change of every gain element <= 1e-12 between iterations";
-      Json poles = Json::array();
-      for (const auto& z : ss.poles) {
-        const std::complex<double> pole(z[0], z[1]);
-        Json p = Json::object();
-        p["re"] = z[0];
-        p["im"] = z[1];
-        p["abs"] = std::abs(pole);
-        p["continuous_rad_s"] = std::abs(std::log(pole)) / period_s_;  // |ln z| / T
-        poles.push(std::move(p));
-      }
-      s["error_poles_z"] = std::move(poles);
+      s["error_poles_z"] = estimator::error_poles_json(ss.poles, period_s_);
       axis["steady_state"] = std::move(s);
     }
     axes.push(std::move(axis));

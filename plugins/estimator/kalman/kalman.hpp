@@ -44,6 +44,7 @@
 #include <vector>
 
 #include "estimator/linear_axes.hpp"
+#include "estimator/position_gain.hpp"
 #include "lode/sdk/block.hpp"
 #include "lode/sdk/estimator_state.hpp"
 
@@ -99,8 +100,7 @@ inline void covariance_step(const AxisModel<N>& model,
                             typename AxisModel<N>::Matrix& next_prior_cov) noexcept {
   using Matrix = typename AxisModel<N>::Matrix;
   gain = prior_cov.col(0) / (prior_cov(0, 0) + r);
-  Matrix i_minus_kh = Matrix::Identity();
-  i_minus_kh.col(0) -= gain;
+  const Matrix i_minus_kh = estimator::i_minus_kh(gain);
   const Matrix posterior_cov =
       i_minus_kh * prior_cov * i_minus_kh.transpose() + (gain * r) * gain.transpose();
   next_prior_cov = model.phi * posterior_cov * model.phi.transpose() + process_noise;

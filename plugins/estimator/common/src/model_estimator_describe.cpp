@@ -2,8 +2,6 @@
 // state (off the RT thread).
 #include <Eigen/Eigenvalues>
 #include <array>
-#include <cmath>
-#include <complex>
 
 #include "estimator/describe_json.hpp"
 #include "estimator/model_estimator.hpp"
@@ -46,14 +44,7 @@ void ModelEstimator::describe_linearisation(Json& out) const {
         (Eigen::MatrixXd::Identity(F.rows(), F.cols()) - s.K * Eigen::MatrixXd(H)) * Eigen::MatrixXd(F);
     Json poles = Json::array();
     const Eigen::VectorXcd z = Eigen::EigenSolver<Eigen::MatrixXd>(closed, false).eigenvalues();
-    for (Eigen::Index i = 0; i < z.size(); ++i) {
-      Json p = Json::object();
-      p["re"] = z(i).real();
-      p["im"] = z(i).imag();
-      p["abs"] = std::abs(z(i));
-      p["continuous_rad_s"] = std::abs(std::log(z(i))) / dt_;
-      poles.push(std::move(p));
-    }
+    for (Eigen::Index i = 0; i < z.size(); ++i) poles.push(estimator::error_pole_json(z(i), dt_));
     ss["error_poles_z"] = std::move(poles);
     lin["steady_state"] = std::move(ss);
   }

@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "estimator/testing/harness_setup.hpp"
 #include "lode/sdk/testing/allocation_counter.hpp"
 #include "lode/sdk/testing/harness.hpp"
 #include "lode/sdk/testing/state_export.hpp"
@@ -127,6 +128,30 @@ std::string params_with_initial(double x, double y, double theta, const std::str
   char buffer[160];
   std::snprintf(buffer, sizeof buffer, "model: hall\ninitial: [%.17g, %.17g, %.17g]\n", x, y, theta);
   return buffer + extra;
+}
+
+/// The plain set-up: estimator.glsdc with its defaults over the [1, 5] hall model, measured by a
+/// truth of that same model.
+struct HallSetup {
+  Truth truth{"[1, 5]"};
+  Rig rig{"model: hall", hall_model("hall", "[1, 5]")};
+  [[nodiscard]] bool ok() const { return truth.ok() && rig.ok(); }
+};
+
+/// The heap allocations of `ticks` ticks of `rig`, fed `measurements` in turn, each tick
+/// followed by `after_tick()` (LODE_REQUIRE_ALLOCATION_COUNTING() first).
+template <typename AfterTick>
+std::size_t allocations_over_ticks(Rig& rig, const std::vector<std::vector<double>>& measurements, int ticks,
+                                   AfterTick&& after_tick) {
+  auto in = rig.harness().input("measurement");
+  return estimator_testing::allocations_during([&] {
+    for (int k = 0; k < ticks; ++k) {
+      const std::vector<double>& y = measurements[static_cast<std::size_t>(k) % measurements.size()];
+      std::copy(y.begin(), y.end(), in.begin());
+      rig.harness().step();
+      after_tick();
+    }
+  });
 }
 
 // ---------------------------------------------------------------------------------------
@@ -431,10 +456,9 @@ TEST(GlsdcConvergence, ThreeDofTwoSensorsHasAWrongMinimumInsideAQuarterPitch) {
 // Brief test 3: Fig. 36, a 200 um Y step without noise, started at the previous pose.
 
 TEST(GlsdcFig36, TwoHundredMicronYStep) {
-  Truth truth("[1, 5]");
-  ASSERT_TRUE(truth.ok());
-  Rig rig("model: hall", hall_model("hall", "[1, 5]"));
-  ASSERT_TRUE(rig.ok());
+  HallSetup setup;
+  ASSERT_TRUE(setup.ok());
+  auto& [truth, rig] = setup;
   const std::vector<double> before = truth.measure(0.0, 0.0, 0.0);
   for (int k = 0; k < 3; ++k) rig.step(before);
   EXPECT_NEAR(rig.cost(), 0.0, 1e-20);
@@ -682,21 +706,12 @@ TEST(GlsdcModes, ThreeSensorsConvergeAndBoundTheRotationNoise) {
 
 TEST(GlsdcRealTime, StepDoesNotAllocate) {
   LODE_REQUIRE_ALLOCATION_COUNTING();
-  Truth truth("[1, 5]");
-  ASSERT_TRUE(truth.ok());
-  Rig rig("model: hall", hall_model("hall", "[1, 5]"));
-  ASSERT_TRUE(rig.ok());
+  HallSetup setup;
+  ASSERT_TRUE(setup.ok());
+  auto& [truth, rig] = setup;
   std::vector<std::vector<double>> inputs;
   for (int i = 0; i < 100; ++i) inputs.push_back(truth.measure(1e-4 * i, -5e-5 * i, 1e-5 * i));
-  auto in = rig.harness().input("measurement");
-  const long before = static_cast<long>(lode::testing::allocation_count());
-  for (int k = 0; k < 10000; ++k) {
-    const std::vector<double>& y = inputs[static_cast<std::size_t>(k % 100)];
-    std::copy(y.begin(), y.end(), in.begin());
-    rig.harness().step();
-  }
-  const long allocations = static_cast<long>(lode::testing::allocation_count()) - before;
-  EXPECT_EQ(allocations, 0);
+  EXPECT_EQ(allocations_over_ticks(rig, inputs, 10000, [] {}), 0u);
 }
 
 // --- estimator state (hot swap) and invalid_measurement ---------------------------------
@@ -743,10 +758,9 @@ TEST(GlsdcState, LayoutAndExportBeforeTheFirstSolve) {
 }
 
 TEST(GlsdcState, ExportIsTheWarmStartAndThePublishedR) {
-  Truth truth("[1, 5]");
-  ASSERT_TRUE(truth.ok());
-  Rig rig("model: hall", hall_model("hall", "[1, 5]"));
-  ASSERT_TRUE(rig.ok());
+  HallSetup setup;
+  ASSERT_TRUE(setup.ok());
+  auto& [truth, rig] = setup;
   for (const auto& y : noisy_path(truth, 20, 5)) ASSERT_EQ(rig.step(y), StepStatus::ok);
   const auto e = lode::testing::export_state_of(rig.estimator());
   for (int a = 0; a < 3; ++a) {
@@ -854,24 +868,19 @@ TEST(GlsdcInvalid, PropagateMakesTheCycleNaNAndKeepsTheWarmStart) {
 
 TEST(GlsdcState, ExportImportDoNotAllocate) {
   LODE_REQUIRE_ALLOCATION_COUNTING();
-  Truth truth("[1, 5]");
-  ASSERT_TRUE(truth.ok());
-  Rig rig("model: hall", hall_model("hall", "[1, 5]"));
-  ASSERT_TRUE(rig.ok());
+  HallSetup setup;
+  ASSERT_TRUE(setup.ok());
+  auto& [truth, rig] = setup;
   const auto path = noisy_path(truth, 100, 17);
   double values[3], covariance[9], nu = 0.0, s = 0.0;
   const std::uint8_t present[3] = {1, 1, 1};
-  auto in = rig.harness().input("measurement");
-  const long before = static_cast<long>(lode::testing::allocation_count());
-  for (int k = 0; k < 2000; ++k) {
-    const std::vector<double>& y = path[static_cast<std::size_t>(k % 100)];
-    std::copy(y.begin(), y.end(), in.begin());
-    rig.harness().step();
-    rig.estimator().export_state(values, covariance);
-    rig.estimator().import_state(values, covariance, present);
-    (void)rig.estimator().innovation(&nu, &s);
-  }
-  EXPECT_EQ(static_cast<long>(lode::testing::allocation_count()) - before, 0);
+  EXPECT_EQ(allocations_over_ticks(rig, path, 2000,
+                                   [&] {
+                                     rig.estimator().export_state(values, covariance);
+                                     rig.estimator().import_state(values, covariance, present);
+                                     (void)rig.estimator().innovation(&nu, &s);
+                                   }),
+            0u);
 }
 
 }  // namespace
