@@ -30,7 +30,9 @@ TEST(Maglev6, DeclaresPortsAndThePapersParameters) {
   EXPECT_EQ(element_list(plant.outputs()), pose);
   EXPECT_EQ(element_list(plant.state_elements()),
             pose + ", vx [m/s], vy [m/s], omega_z [rad/s], vz [m/s], omega_x [rad/s], omega_y [rad/s]");
-  EXPECT_EQ(&plant.process_state(), &plant.state_elements());
+  // The estimator's f runs on the simulator's state and inputs.
+  EXPECT_EQ(element_list(plant.process_state()), element_list(plant.state_elements()));
+  EXPECT_EQ(element_list(plant.process_inputs()), element_list(plant.inputs()));
   EXPECT_EQ(plant.config().mass_kg, 1.52);
   EXPECT_EQ(plant.config().inertia_xx_kg_m2, 0.0037);
   EXPECT_EQ(plant.config().inertia_yy_kg_m2, 0.0019);
