@@ -16,7 +16,7 @@
 //   C_H    = v_hall - (1.299e-6 v^2 + 9.05e-5 v + 2.544)        (eq. 15, bracketed: sensor.hall_gap README)
 //   d_hall = 1e-3 M_H(clamp(C_H, 0, 0.8))  [m]                  (eq. 14, 16; M_H in mm)
 // With the coil_voltage input unconnected, v = 0 (only the quiescent 2.544 V is removed).
-// The polynomial is the one sensor.hall_gap inverts (hall_polynomial.hpp), so the simulated
+// The polynomial is the one sensor.hall_gap inverts (the sensor family's hall_polynomial.hpp), so the simulated
 // sensor and this conversion are exact inverses when their parameters agree.
 //
 // Threads: configure()/activate()/describe() on the loader thread, step() on the RT thread.
@@ -27,7 +27,7 @@
 #include <cstdint>
 #include <string>
 
-#include "../../sensor/hall_gap/hall_polynomial.hpp"
+#include "hall_polynomial.hpp"
 #include "lode/sdk/block.hpp"
 
 namespace lode::plugins {

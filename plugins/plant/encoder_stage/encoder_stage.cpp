@@ -8,9 +8,8 @@
 
 namespace lode::plugins {
 
-EncoderStage::EncoderStage()
-    : outputs_{{"x", "m"}, {"v", "m/s"}},
-      state_elements_{{"x", "m"}, {"v", "m/s"}, {"a", "m/s^2"}} {
+EncoderStage::EncoderStage() {
+  declare_plant_elements({}, {{"x", "m"}, {"v", "m/s"}}, {{"x", "m"}, {"v", "m/s"}, {"a", "m/s^2"}});
   apply(EncoderStageConfig{});
 }
 

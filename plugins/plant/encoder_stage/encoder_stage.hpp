@@ -59,10 +59,6 @@ class EncoderStage final : public PlantModel {
   void apply(const EncoderStageConfig& config);
   [[nodiscard]] const EncoderStageConfig& config() const { return config_; }
 
-  [[nodiscard]] const Elements& inputs() const override { return inputs_; }
-  [[nodiscard]] const Elements& outputs() const override { return outputs_; }
-  [[nodiscard]] const Elements& state_elements() const override { return state_elements_; }
-
   void reset() noexcept override;
   /// Moves time on by dt_s (u is unused: the plant has no inputs).
   void advance(double dt_s, const double* u) noexcept override;
@@ -77,9 +73,6 @@ class EncoderStage final : public PlantModel {
 
  private:
   EncoderStageConfig config_;
-  Elements inputs_;
-  Elements outputs_;
-  Elements state_elements_;
   double time_s_ = 0.0;
   double time_compensation_s_ = 0.0;  ///< Kahan compensation of time_s_ (long runs at 100 kHz)
   std::array<double, kStateSize> x_{};

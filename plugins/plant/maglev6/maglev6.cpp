@@ -52,12 +52,14 @@ Eigen::Matrix3d read_input_matrix(Params& params, std::string_view key, const Ei
 
 }  // namespace
 
-Maglev6::Maglev6()
-    : inputs_{{"iq_a", "A"}, {"iq_b", "A"}, {"iq_c", "A"}, {"id_a", "A"}, {"id_b", "A"}, {"id_c", "A"}},
-      outputs_{{"x", "m"}, {"y", "m"}, {"theta_z", "rad"}, {"z", "m"}, {"theta_x", "rad"}, {"theta_y", "rad"}},
-      state_elements_{{"x", "m"},         {"y", "m"},         {"theta_z", "rad"},   {"z", "m"},
-                      {"theta_x", "rad"}, {"theta_y", "rad"}, {"vx", "m/s"},        {"vy", "m/s"},
-                      {"omega_z", "rad/s"}, {"vz", "m/s"},    {"omega_x", "rad/s"}, {"omega_y", "rad/s"}} {
+Maglev6::Maglev6() {
+  const Elements currents{{"iq_a", "A"}, {"iq_b", "A"}, {"iq_c", "A"}, {"id_a", "A"}, {"id_b", "A"}, {"id_c", "A"}};
+  const Elements state{{"x", "m"},         {"y", "m"},         {"theta_z", "rad"},   {"z", "m"},
+                       {"theta_x", "rad"}, {"theta_y", "rad"}, {"vx", "m/s"},        {"vy", "m/s"},
+                       {"omega_z", "rad/s"}, {"vz", "m/s"},    {"omega_x", "rad/s"}, {"omega_y", "rad/s"}};
+  const Elements pose(state.begin(), state.begin() + kAxes);
+  declare_plant_elements(currents, pose, state);
+  declare_process_elements(state, currents);
   apply(Maglev6Config{});
 }
 

@@ -98,9 +98,6 @@ class Maglev6 final : public PlantModel, public ProcessModel {
   [[nodiscard]] const Maglev6Config& config() const { return config_; }
 
   // PlantModel
-  [[nodiscard]] const Elements& inputs() const override { return inputs_; }
-  [[nodiscard]] const Elements& outputs() const override { return outputs_; }
-  [[nodiscard]] const Elements& state_elements() const override { return state_elements_; }
   void reset() noexcept override;
   void advance(double dt_s, const double* u) noexcept override;
   void output(double* y) const noexcept override;
@@ -108,8 +105,6 @@ class Maglev6 final : public PlantModel, public ProcessModel {
   void describe(Json& out) const override;
 
   // ProcessModel
-  [[nodiscard]] const Elements& process_state() const override { return state_elements_; }
-  [[nodiscard]] const Elements& process_inputs() const override { return inputs_; }
   void propagate(double dt_s, const double* x, const double* u, double* x_next) const noexcept override;
   bool process_jacobian(double dt_s, const double* x, const double* u, double* F) const noexcept override;
 
@@ -128,9 +123,6 @@ class Maglev6 final : public PlantModel, public ProcessModel {
                  double* x_next) const noexcept;
 
   Maglev6Config config_;
-  Elements inputs_;
-  Elements outputs_;
-  Elements state_elements_;
   std::array<double, kAxes> omega_{};           ///< sqrt(K / M) per axis
   std::array<double, kAxes> inverse_inertia_{}; ///< 1/M or 1/I per axis (for the wrench)
   std::array<double, kStateSize> x_{};

@@ -6,11 +6,10 @@
 
 namespace lode::plugins {
 
-PlanarStage::PlanarStage()
-    : inputs_{{"fx", "N"}, {"fy", "N"}, {"tz", "N*m"}},
-      outputs_{{"x", "m"}, {"y", "m"}, {"theta_z", "rad"}},
-      state_elements_{{"x", "m"},     {"y", "m"},     {"theta_z", "rad"},
-                      {"vx", "m/s"}, {"vy", "m/s"}, {"omega_z", "rad/s"}} {
+PlanarStage::PlanarStage() {
+  declare_plant_elements({{"fx", "N"}, {"fy", "N"}, {"tz", "N*m"}},
+                         {{"x", "m"}, {"y", "m"}, {"theta_z", "rad"}},
+                         {{"x", "m"}, {"y", "m"}, {"theta_z", "rad"}, {"vx", "m/s"}, {"vy", "m/s"}, {"omega_z", "rad/s"}});
   apply(PlanarStageConfig{});
 }
 

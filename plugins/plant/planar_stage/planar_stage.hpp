@@ -55,10 +55,6 @@ class PlanarStage final : public PlantModel {
   void apply(const PlanarStageConfig& config);
   [[nodiscard]] const PlanarStageConfig& config() const { return config_; }
 
-  [[nodiscard]] const Elements& inputs() const override { return inputs_; }
-  [[nodiscard]] const Elements& outputs() const override { return outputs_; }
-  [[nodiscard]] const Elements& state_elements() const override { return state_elements_; }
-
   void reset() noexcept override;
   void advance(double dt_s, const double* u) noexcept override;
   void output(double* y) const noexcept override;
@@ -67,9 +63,6 @@ class PlanarStage final : public PlantModel {
 
  private:
   PlanarStageConfig config_;
-  Elements inputs_;
-  Elements outputs_;
-  Elements state_elements_;
   std::array<double, kStateSize> x_{};
 };
 

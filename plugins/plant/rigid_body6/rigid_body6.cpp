@@ -3,6 +3,7 @@
 #include <cmath>
 #include <numbers>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "lode/sdk/plugin.hpp"
@@ -82,13 +83,15 @@ constexpr std::int64_t kMaxSubsteps = 1000;
 
 }  // namespace
 
-RigidBody6::RigidBody6()
-    : inputs_{{"fx", "N"}, {"fy", "N"}, {"fz", "N"}, {"tx", "N*m"}, {"ty", "N*m"}, {"tz", "N*m"}},
-      state_elements_{{"x", "m"},     {"y", "m"},       {"z", "m"},     {"phi", "rad"},
-                      {"theta", "rad"}, {"psi", "rad"},   {"u", "m/s"},   {"v", "m/s"},
-                      {"w", "m/s"},   {"p", "rad/s"},   {"q", "rad/s"}, {"r", "rad/s"}} {
-  outputs_.assign(state_elements_.begin(), state_elements_.begin() + kPoseSize);
-  outputs_.insert(outputs_.end(), inputs_.begin(), inputs_.end());
+RigidBody6::RigidBody6() {
+  const Elements wrench{{"fx", "N"}, {"fy", "N"}, {"fz", "N"}, {"tx", "N*m"}, {"ty", "N*m"}, {"tz", "N*m"}};
+  const Elements state{{"x", "m"},     {"y", "m"},       {"z", "m"},     {"phi", "rad"},
+                       {"theta", "rad"}, {"psi", "rad"},   {"u", "m/s"},   {"v", "m/s"},
+                       {"w", "m/s"},   {"p", "rad/s"},   {"q", "rad/s"}, {"r", "rad/s"}};
+  Elements outputs(state.begin(), state.begin() + kPoseSize);  // the pose, then the applied wrench read back
+  outputs.insert(outputs.end(), wrench.begin(), wrench.end());
+  declare_plant_elements(wrench, std::move(outputs), state);
+  declare_process_elements(state, wrench);
   apply(RigidBody6Config{});
 }
 

@@ -94,9 +94,6 @@ class RigidBody6 final : public PlantModel, public ProcessModel {
   [[nodiscard]] const RigidBody6Config& config() const { return config_; }
 
   // PlantModel: the simulator's truth.
-  [[nodiscard]] const Elements& inputs() const override { return inputs_; }
-  [[nodiscard]] const Elements& outputs() const override { return outputs_; }
-  [[nodiscard]] const Elements& state_elements() const override { return state_elements_; }
   void reset() noexcept override;
   void advance(double dt_s, const double* u) noexcept override;
   void output(double* y) const noexcept override;
@@ -104,15 +101,10 @@ class RigidBody6 final : public PlantModel, public ProcessModel {
   void describe(Json& out) const override;
 
   // ProcessModel: the estimator's f (stateless, same integrator as advance()).
-  [[nodiscard]] const Elements& process_state() const override { return state_elements_; }
-  [[nodiscard]] const Elements& process_inputs() const override { return inputs_; }
   void propagate(double dt_s, const double* x, const double* u, double* x_next) const noexcept override;
 
  private:
   RigidBody6Config config_;
-  Elements inputs_;
-  Elements outputs_;
-  Elements state_elements_;
   rigid_body6::State x_{};
   rigid_body6::Input applied_{};  ///< input held over the last advance() (the readback output)
 };

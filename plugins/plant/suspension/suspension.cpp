@@ -131,10 +131,11 @@ Expected<ForceCurveFitSingle> fit_force_curve_d4(const std::vector<double>& gap_
   return fit;
 }
 
-Suspension::Suspension()
-    : inputs_{{"coil_voltage", "V"}},
-      outputs_{{"gap", "m"}, {"coil_voltage", "V"}},
-      state_elements_{{"gap", "m"}, {"velocity", "m/s"}, {"current", "A"}} {
+Suspension::Suspension() {
+  const Elements voltage{{"coil_voltage", "V"}};
+  const Elements state{{"gap", "m"}, {"velocity", "m/s"}, {"current", "A"}};
+  declare_plant_elements(voltage, {{"gap", "m"}, {"coil_voltage", "V"}}, state);
+  declare_process_elements(state, voltage);
   apply(SuspensionConfig{});
 }
 

@@ -109,9 +109,6 @@ class Suspension final : public PlantModel, public ProcessModel {
   [[nodiscard]] const SuspensionConfig& config() const { return config_; }
 
   // PlantModel
-  [[nodiscard]] const Elements& inputs() const override { return inputs_; }
-  [[nodiscard]] const Elements& outputs() const override { return outputs_; }
-  [[nodiscard]] const Elements& state_elements() const override { return state_elements_; }
   void reset() noexcept override;
   void advance(double dt_s, const double* u) noexcept override;
   void output(double* y) const noexcept override;
@@ -119,8 +116,6 @@ class Suspension final : public PlantModel, public ProcessModel {
   void describe(Json& out) const override;
 
   // ProcessModel
-  [[nodiscard]] const Elements& process_state() const override { return state_elements_; }
-  [[nodiscard]] const Elements& process_inputs() const override { return inputs_; }
   void propagate(double dt_s, const double* x, const double* u, double* x_next) const noexcept override;
   bool process_jacobian(double dt_s, const double* x, const double* u, double* F) const noexcept override;
 
@@ -145,9 +140,6 @@ class Suspension final : public PlantModel, public ProcessModel {
   void enforce_stops(double* x) noexcept;
 
   SuspensionConfig config_;
-  Elements inputs_;
-  Elements outputs_;
-  Elements state_elements_;
   State x_{};
   double held_voltage_v_ = 0.0;
   double initial_current_a_ = 0.0;

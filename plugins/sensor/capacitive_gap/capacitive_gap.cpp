@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <set>
+#include <utility>
 
 #include "lode/sdk/plugin.hpp"
 #include "lode/sdk/text.hpp"
@@ -58,8 +59,7 @@ std::vector<GapProbe> default_gap_probes() {
   };
 }
 
-CapacitiveGap::CapacitiveGap()
-    : state_elements_{{"x", "m"}, {"y", "m"}, {"z", "m"}, {"phi", "rad"}, {"theta", "rad"}, {"psi", "rad"}} {
+CapacitiveGap::CapacitiveGap() {
   CapacitiveGapConfig c;
   c.probes = default_gap_probes();
   apply(c);
@@ -106,11 +106,13 @@ Status CapacitiveGap::configure(Params& params) {
 void CapacitiveGap::apply(const CapacitiveGapConfig& config) {
   config_ = config;
   face_m_.clear();
-  channels_.clear();
+  Elements channels;
   for (const GapProbe& probe : config_.probes) {
     face_m_.push_back(probe.target_m - config_.nominal_gap_m * probe.axis);
-    channels_.push_back({probe.name, "V"});
+    channels.push_back({probe.name, "V"});
   }
+  declare_measurement_elements({{"x", "m"}, {"y", "m"}, {"z", "m"}, {"phi", "rad"}, {"theta", "rad"}, {"psi", "rad"}},
+                               std::move(channels));
 }
 
 void CapacitiveGap::gaps(const double* state, double* gap_m) const noexcept {

@@ -58,8 +58,6 @@ class CapacitiveGap final : public MeasurementModel {
   void apply(const CapacitiveGapConfig& config);
   [[nodiscard]] const CapacitiveGapConfig& config() const { return config_; }
 
-  [[nodiscard]] const Elements& state_elements() const override { return state_elements_; }
-  [[nodiscard]] const Elements& channels() const override { return channels_; }
   void evaluate(const double* state, double* y) const noexcept override;
   void jacobian(const double* state, double* y, double* H) const noexcept override;
   void describe(Json& out) const override;
@@ -70,8 +68,6 @@ class CapacitiveGap final : public MeasurementModel {
  private:
   CapacitiveGapConfig config_;
   std::vector<Eigen::Vector3d> face_m_;  ///< s_i = r_i - g0 n_i, sized in apply()
-  Elements state_elements_;
-  Elements channels_;
 };
 
 }  // namespace lode::plugins

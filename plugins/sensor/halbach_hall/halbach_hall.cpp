@@ -23,6 +23,9 @@ constexpr double kMu0 = 4.0e-7 * kPi;  // vacuum permeability [T*m/A]; cancels i
 /// Samples per pitch when searching the maximum model error (enough for harmonics < 100).
 constexpr int kErrorSamplesPerPitch = 4096;
 
+/// What the sensors see: the planar pose, before and after the sensors are known.
+Elements planar_pose() { return {{"x", "m"}, {"y", "m"}, {"theta_z", "rad"}}; }
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------
@@ -163,7 +166,7 @@ bool validate_halbach_config(const HalbachHallConfig& c, const HalbachConfigRepo
 
 // ---------------------------------------------------------------------------------------
 
-HalbachHall::HalbachHall() : state_elements_{{"x", "m"}, {"y", "m"}, {"theta_z", "rad"}} {}
+HalbachHall::HalbachHall() { declare_measurement_elements(planar_pose(), {}); }
 
 Status HalbachHall::configure(Params& params) {
   const HalbachHallConfig d;
@@ -276,7 +279,7 @@ void HalbachHall::build(const HalbachHallConfig& config) {
 
   profiles_.clear();
   geometry_.clear();
-  channel_elements_.clear();
+  Elements channels;
   for (std::size_t i = 0; i < config.sensors.size(); ++i) {
     const HalbachSensorConfig& s = config.sensors[i];
     geometry_.push_back({s.x_m, s.y_m});
@@ -302,9 +305,10 @@ void HalbachHall::build(const HalbachHallConfig& config) {
         }
       }
       profiles_.push_back(p);
-      channel_elements_.push_back({names[k], "V"});
+      channels.push_back({names[k], "V"});
     }
   }
+  declare_measurement_elements(planar_pose(), std::move(channels));
 }
 
 double HalbachHall::sin_coefficient_v(std::size_t channel, std::size_t h) const {
@@ -433,7 +437,7 @@ void HalbachHall::describe(Json& out) const {
     for (std::size_t k = 0; k < 2; ++k) {
       const ChannelProfile& p = profiles_[2 * i + k];
       Json ch = Json::object();
-      ch["name"] = channel_elements_[2 * i + k].name;
+      ch["name"] = this->channels()[2 * i + k].name;
       ch["field"] = (p.axis == Axis::y) ? "B_Y(world Y)" : "B_X(world X)";
       ch["dc_v"] = p.dc_v;
       ch["sin_v"] = std::vector<double>(p.sin_v.begin(), p.sin_v.begin() + harmonics_.size());

@@ -115,8 +115,6 @@ class HalbachHall final : public MeasurementModel {
   Status apply(const HalbachHallConfig& config);
   [[nodiscard]] const HalbachHallConfig& config() const { return config_; }
 
-  [[nodiscard]] const Elements& state_elements() const override { return state_elements_; }
-  [[nodiscard]] const Elements& channels() const override { return channel_elements_; }
   void evaluate(const double* state, double* y) const noexcept override;
   void jacobian(const double* state, double* y, double* H) const noexcept override;
   void describe(Json& out) const override;
@@ -156,8 +154,6 @@ class HalbachHall final : public MeasurementModel {
   void predict(const double* state, double* y, double* H) const noexcept;
 
   HalbachHallConfig config_;
-  Elements state_elements_;
-  Elements channel_elements_;
   std::vector<int> harmonics_;
   std::vector<HalbachHarmonic> physics_harmonics_;  ///< per harmonic, in T (physics mode)
   std::vector<ChannelProfile> profiles_;            ///< 2 per sensor: a, b

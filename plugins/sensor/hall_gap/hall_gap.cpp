@@ -25,11 +25,9 @@ void HallGap::apply(const hall::Conversion& conversion, Output output, const std
   conversion_ = conversion;
   output_ = output;
   if (output_ == Output::hall_voltage) {
-    state_elements_ = {{"gap", "m"}, {"coil_voltage", "V"}};
-    channel_elements_ = {{channel, "V"}};
+    declare_measurement_elements({{"gap", "m"}, {"coil_voltage", "V"}}, {{channel, "V"}});
   } else {
-    state_elements_ = {{"gap", "m"}};
-    channel_elements_ = {{channel, "m"}};
+    declare_measurement_elements({{"gap", "m"}}, {{channel, "m"}});
   }
 }
 

@@ -50,8 +50,6 @@ class HallGap final : public MeasurementModel {
   /// Use this conversion (already validated) and output; configure() ends here.
   void apply(const hall::Conversion& conversion, Output output, const std::string& channel);
 
-  [[nodiscard]] const Elements& state_elements() const override { return state_elements_; }
-  [[nodiscard]] const Elements& channels() const override { return channel_elements_; }
   void evaluate(const double* state, double* y) const noexcept override;
   void jacobian(const double* state, double* y, double* H) const noexcept override;
   void describe(Json& out) const override;
@@ -62,8 +60,6 @@ class HallGap final : public MeasurementModel {
  private:
   hall::Conversion conversion_ = hall::Conversion::paper();
   Output output_ = Output::hall_voltage;
-  Elements state_elements_;
-  Elements channel_elements_;
 };
 
 }  // namespace lode::plugins

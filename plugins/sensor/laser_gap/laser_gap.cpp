@@ -4,6 +4,7 @@
 #include <cmath>
 #include <set>
 #include <string>
+#include <utility>
 
 #include "lode/sdk/plugin.hpp"
 #include "lode/sdk/text.hpp"
@@ -24,9 +25,12 @@ Eigen::MatrixXd geometry_matrix(const std::vector<LaserSpot>& spots) {
   return h;
 }
 
+/// What the spots see: the vertical pose, before and after the spots are known.
+Elements vertical_pose() { return {{"z", "m"}, {"theta_x", "rad"}, {"theta_y", "rad"}}; }
+
 }  // namespace
 
-LaserGap::LaserGap() : state_elements_{{"z", "m"}, {"theta_x", "rad"}, {"theta_y", "rad"}} {}
+LaserGap::LaserGap() { declare_measurement_elements(vertical_pose(), {}); }
 
 Status LaserGap::configure(Params& params) {
   const double sensitivity = params.number("sensitivity_v_per_m");
@@ -69,8 +73,9 @@ Status LaserGap::configure(Params& params) {
 void LaserGap::apply(std::vector<LaserSpot> spots, double sensitivity_v_per_m) {
   spots_ = std::move(spots);
   sensitivity_v_per_m_ = sensitivity_v_per_m;
-  channel_elements_.clear();
-  for (const LaserSpot& s : spots_) channel_elements_.push_back({s.name, "V"});
+  Elements channels;
+  for (const LaserSpot& s : spots_) channels.push_back({s.name, "V"});
+  declare_measurement_elements(vertical_pose(), std::move(channels));
 }
 
 void LaserGap::evaluate(const double* state, double* y) const noexcept {

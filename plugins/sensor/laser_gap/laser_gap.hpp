@@ -51,8 +51,6 @@ class LaserGap final : public MeasurementModel {
   /// Use these spots and sensitivity (already valid); configure() ends here.
   void apply(std::vector<LaserSpot> spots, double sensitivity_v_per_m);
 
-  [[nodiscard]] const Elements& state_elements() const override { return state_elements_; }
-  [[nodiscard]] const Elements& channels() const override { return channel_elements_; }
   void evaluate(const double* state, double* y) const noexcept override;
   void jacobian(const double* state, double* y, double* H) const noexcept override;
   void describe(Json& out) const override;
@@ -65,8 +63,6 @@ class LaserGap final : public MeasurementModel {
  private:
   std::vector<LaserSpot> spots_;
   double sensitivity_v_per_m_ = 1.0;
-  Elements state_elements_;
-  Elements channel_elements_;
 };
 
 }  // namespace lode::plugins

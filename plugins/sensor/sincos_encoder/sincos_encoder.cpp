@@ -9,7 +9,7 @@
 
 namespace lode::plugins {
 
-SincosEncoder::SincosEncoder() : state_elements_{{"x", "m"}} {
+SincosEncoder::SincosEncoder() {
   const Status applied = apply(SincosEncoderConfig{});
   (void)applied;  // the defaults are valid (Table 1)
 }
@@ -57,7 +57,7 @@ Status SincosEncoder::apply(const SincosEncoderConfig& config) {
   config_ = config;
   wavenumber_rad_per_m_ = 2.0 * std::numbers::pi / config_.pitch_m;
   cos_amplitude_v_ = config_.amplitude_ratio * config_.amplitude_v;
-  channel_elements_ = {{config_.channel_names[0], "V"}, {config_.channel_names[1], "V"}};
+  declare_measurement_elements({{"x", "m"}}, {{config_.channel_names[0], "V"}, {config_.channel_names[1], "V"}});
   return Status::ok();
 }
 

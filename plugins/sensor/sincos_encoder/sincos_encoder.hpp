@@ -63,8 +63,6 @@ class SincosEncoder final : public MeasurementModel {
   Status apply(const SincosEncoderConfig& config);
   [[nodiscard]] const SincosEncoderConfig& config() const { return config_; }
 
-  [[nodiscard]] const Elements& state_elements() const override { return state_elements_; }
-  [[nodiscard]] const Elements& channels() const override { return channel_elements_; }
   void evaluate(const double* state, double* y) const noexcept override;
   void jacobian(const double* state, double* y, double* H) const noexcept override;
   void describe(Json& out) const override;
@@ -77,8 +75,6 @@ class SincosEncoder final : public MeasurementModel {
 
  private:
   SincosEncoderConfig config_;
-  Elements state_elements_;
-  Elements channel_elements_;
   double wavenumber_rad_per_m_ = 0.0;
   double cos_amplitude_v_ = 0.0;  ///< amplitude_ratio * amplitude_v
 };

@@ -11,16 +11,17 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <random>
 #include <string>
 #include <vector>
 
-#include "../../../sensor/hall_gap/hall_polynomial.hpp"
 #include "estimator/testing/harness_setup.hpp"
 #include "estimator/testing/state_handover.hpp"
 #include "estimator/testing/suspension_estimator.hpp"
+#include "hall_polynomial.hpp"
 #include "lode/sdk/testing/allocation_counter.hpp"
 #include "lode/sdk/testing/require.hpp"
 #include "lode/sdk/testing/harness.hpp"

@@ -2,9 +2,9 @@
 // sensor.hall_gap (the forward model the simulator and the estimators use) and
 // estimator.hall_direct (the paper's "direct measurement").
 //
-// Header-only and RT-safe (no allocation, no throw). estimator.hall_direct includes it as
-// "../../sensor/hall_gap/hall_polynomial.hpp" so that both plugins evaluate one set of
-// equations.
+// Part of the sensor family's library (lode_sensor_common), which both plugins link, so that
+// they evaluate one set of equations. The evaluation (Polynomial, Conversion) is RT-safe (no
+// allocation, no throw); read_conversion() runs at configure time.
 //
 //   d_hall(v, v_hall) = M_H(C_H(v, v_hall))                                      (eq. 14)
 //   C_H = v_hall - (1.299e-6 v^2 + 9.05e-5 v + 2.544)                            (eq. 15, read
@@ -21,12 +21,10 @@
 #include <array>
 #include <cmath>
 #include <cstddef>
-#include <cstdio>
 #include <string>
 #include <vector>
 
 #include "lode/sdk/params.hpp"
-#include "lode/sdk/text.hpp"
 
 namespace lode::plugins::hall {
 
@@ -136,46 +134,6 @@ struct Conversion {
 ///   distance_polynomial_mm eq. 16 in descending powers of C_H [mm/V^n]
 ///   compensated_range_v    [min, max] of C_H where eq. 16 is valid and decreasing
 /// Every problem is recorded on `params`; the result is usable only if params.ok().
-inline Conversion read_conversion(Params& params) {
-  Conversion c = Conversion::paper();
-  const std::vector<double> coil = params.numbers("coil_polynomial_v", kPaperCoilPolynomial);
-  const std::vector<double> distance = params.numbers("distance_polynomial_mm", kPaperDistancePolynomial);
-  const std::vector<double> range =
-      params.numbers("compensated_range_v", {kPaperCompensatedMinV, kPaperCompensatedMaxV}, 2);
-  if (coil.empty() || coil.size() > kMaxCoefficients) {
-    params.fail("coil_polynomial_v", "expected 1 to " + std::to_string(kMaxCoefficients) +
-                                         " coefficients (descending powers of the coil voltage), got " +
-                                         std::to_string(coil.size()));
-  }
-  if (distance.size() < 2 || distance.size() > kMaxCoefficients) {
-    params.fail("distance_polynomial_mm", "expected 2 to " + std::to_string(kMaxCoefficients) +
-                                              " coefficients (descending powers of C_H), got " +
-                                              std::to_string(distance.size()));
-  }
-  for (double v : coil) {
-    if (!std::isfinite(v)) params.fail("coil_polynomial_v", "coefficients must be finite");
-  }
-  for (double v : distance) {
-    if (!std::isfinite(v)) params.fail("distance_polynomial_mm", "coefficients must be finite");
-  }
-  if (range.size() == 2 && !(range[0] < range[1])) {
-    params.fail("compensated_range_v", "expected [min, max] with min < max, got [" + number_text(range[0]) +
-                                           ", " + number_text(range[1]) + "]");
-  }
-  if (!params.ok()) return c;
-  c.coil_v = Polynomial::from(coil);
-  c.distance_mm = Polynomial::from(distance);
-  c.compensated_min_v = range[0];
-  c.compensated_max_v = range[1];
-  // The conversion and its inverse need a one-to-one M_H: decreasing over the whole range.
-  const double worst_slope = c.max_distance_slope();
-  if (!(worst_slope < 0.0)) {
-    params.fail("distance_polynomial_mm",
-                "M_H must decrease strictly over compensated_range_v [" + number_text(range[0]) + ", " +
-                    number_text(range[1]) + "] V (eq. 16 does on [0, 0.8] V); its largest slope there is " +
-                    number_text(worst_slope) + " mm/V: narrow the range");
-  }
-  return c;
-}
+Conversion read_conversion(Params& params);
 
 }  // namespace lode::plugins::hall
