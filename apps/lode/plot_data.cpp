@@ -195,7 +195,7 @@ std::vector<AxisTraces> estimation_errors(const std::vector<AxisTraces>& axes) {
     AxisTraces e{axis.name, axis.unit, {}};
     for (const auto& t : axis.traces) {
       if (t.role != "estimate") continue;
-      Trace error{t.label + " - truth", "error", t.detail, std::vector<double>(t.values.size())};
+      Trace error{t.label + " - truth", "error", t.detail, std::vector<double>(t.values.size()), t.label, truth->label};
       for (std::size_t k = 0; k < t.values.size(); ++k) error.values[k] = t.values[k] - truth->values[k];
       e.traces.push_back(std::move(error));
     }

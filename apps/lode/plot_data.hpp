@@ -73,6 +73,9 @@ struct Trace {
   std::string role;    ///< "reference" | "truth" | "estimate" | "error"
   std::string detail;  ///< how it was found: "monitor.estimate", "shadow of kf", ...
   std::vector<double> values;  ///< one per grid sample; NaN where its file has no row
+  /// For an error: the labels of the estimate and the truth it is the difference of, on the
+  /// same axis. The page recomputes its samples from theirs rather than store them twice.
+  std::string minuend, subtrahend;
 };
 
 struct AxisTraces {

@@ -221,8 +221,13 @@ nlohmann::json trace_json(const Trace& trace, BlobStore& blobs) {
     levels.push_back({{"bucket", level.bucket},
                       {"min", blobs.add_float32(level.min, offset)},
                       {"max", blobs.add_float32(level.max, offset)}});
-  return {{"label", trace.label}, {"role", trace.role}, {"detail", trace.detail},
-          {"samples", blobs.add_float32(trace.values, offset)}, {"levels", std::move(levels)}};
+  nlohmann::json j = {{"label", trace.label}, {"role", trace.role}, {"detail", trace.detail},
+                      {"levels", std::move(levels)}};
+  // The min/max of a difference is not the difference of min/max, so an error keeps its own
+  // pyramid; its samples are the difference of two stored curves (a third less to store).
+  if (trace.minuend.empty()) j["samples"] = blobs.add_float32(trace.values, offset);
+  else j["difference"] = {trace.minuend, trace.subtrahend};
+  return j;
 }
 
 nlohmann::json report_json(const ReportInput& in, BlobStore& blobs) {

@@ -55,6 +55,18 @@
     return out;
   }
 
+  /// Samples [from, to) of a curve; an estimation error is its estimate minus the truth.
+  const traceByLabel = new Map();
+  for (const axis of report.signals) for (const t of axis.traces) traceByLabel.set(`${axis.axis}\n${t.label}`, t);
+  function samplesOf(trace, from, to) {
+    if (trace.samples) return readStored(trace.samples, from, to);
+    const [a, b] = trace.difference.map((label) => traceByLabel.get(`${trace.axis}\n${label}`));
+    const x = samplesOf(a, from, to), y = samplesOf(b, from, to);
+    for (let i = 0; i < x.length; ++i) x[i] -= y[i];
+    return x;
+  }
+  for (const axis of report.errors) for (const t of axis.traces) t.axis = axis.axis;
+
   /// What a time plot of `traces` shows between t0 and t1 at `pixels` wide: [x, y1, y2, ...].
   function timeView(traces, scale, t0, t1, pixels) {
     const from = Math.max(0, indexAtOrAfter(t0) - 1);
@@ -65,7 +77,7 @@
     const level = n > 3 * pixels ? levels.findIndex((l) => l.bucket >= wanted) : -1;
     const toNumbers = (values) => Array.from(values, (v) => (Number.isFinite(v) ? v * scale : null));
     if (level < 0 && (n <= 3 * pixels || levels.length === 0)) {
-      return [Array.from(times(from, to)), ...traces.map((t) => toNumbers(readStored(t.samples, from, to)))];
+      return [Array.from(times(from, to)), ...traces.map((t) => toNumbers(samplesOf(t, from, to)))];
     }
     // Two points per bucket, its minimum then its maximum: a vertical stroke per pixel.
     const chosen = level < 0 ? levels.length - 1 : level;
@@ -468,5 +480,7 @@
     drawn: document.querySelectorAll('.figure').length,
     sections: Array.from(document.querySelectorAll('section')).map((s) => s.id),
     decodedChunks: () => chunkCache.size,
+    /// Zooms every linked plot to [a, b] as a drag would; returns how long it took (ms).
+    zoom: (a, b) => { const t0 = performance.now(); if (linked.length) linked[0].zoom(a, b); return performance.now() - t0; },
   };
 })();
