@@ -4,7 +4,7 @@
 //
 //   node chromium_page.mjs --url file:///x.html
 //        [--ready 'window.plotReady === true'] [--eval 'JSON.stringify(window.plotStats)']
-//        [--screenshot out.png] [--width 1400] [--height 900] [--timeout 60]
+//        [--screenshot out.png [--full-page 1]] [--width 1400] [--height 900] [--timeout 60]
 //
 // Prints one JSON object {errors: [...], value: ..., ready_ms: N} on stdout; exits 1 when
 // the page logged an error or never became ready, 0 otherwise.
@@ -114,7 +114,7 @@ try {
   const readyMs = Date.now() - started;
   const value = options.eval ? await evaluate(options.eval) : null;
   if (options.screenshot) {
-    const shot = await page('Page.captureScreenshot', { format: 'png', captureBeyondViewport: true });
+    const shot = await page('Page.captureScreenshot', { format: 'png', captureBeyondViewport: options['full-page'] === '1' });
     writeFileSync(options.screenshot, Buffer.from(shot.data, 'base64'));
   }
   finish([], value, readyMs);
