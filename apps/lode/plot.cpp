@@ -9,6 +9,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -35,9 +36,9 @@ std::string chromium_program() {
   return "";
 }
 
-/// Runs `argv` with stdout and stderr discarded (Chromium reports GPU and D-Bus noise there);
-/// returns its exit status, or -1 when it could not be started.
-int run_quietly(const std::vector<std::string>& argv) {
+/// Starts `argv` with stdout and stderr discarded (Chromium reports GPU and D-Bus noise
+/// there); returns its pid, or -1 when it could not be started.
+pid_t spawn_quietly(const std::vector<std::string>& argv) {
   std::vector<char*> args;
   for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
   args.push_back(nullptr);
@@ -45,18 +46,23 @@ int run_quietly(const std::vector<std::string>& argv) {
   posix_spawn_file_actions_init(&actions);
   posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
   posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
-  pid_t pid = 0;
+  pid_t pid = -1;
   const int spawned = posix_spawn(&pid, args[0], &actions, nullptr, args.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
-  if (spawned != 0) return -1;
+  return spawned == 0 ? pid : -1;
+}
+
+/// The exit status of `pid`, or -1 when it did not exit normally.
+int wait_for(pid_t pid) {
   int status = 0;
-  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
+  while (waitpid(pid, &status, 0) < 0)
+    if (errno != EINTR) return -1;
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
-/// One PNG per figure: the page shows only the figure named in its #figure= fragment. A
-/// fresh profile per shot, so that two Chromiums never share (and lock) one.
+/// One PNG per figure: the page shows only the figure named in its #figure= fragment. Two
+/// Chromiums at a time (each mostly waits on its own start-up), each with a fresh profile of
+/// its own, since two cannot share (and lock) one.
 int write_pngs(const fs::path& html, const std::vector<std::string>& figures, const fs::path& dir, bool quiet) {
   const std::string chromium = chromium_program();
   if (chromium.empty()) {
@@ -65,24 +71,44 @@ int write_pngs(const fs::path& html, const std::vector<std::string>& figures, co
   }
   std::error_code ec;
   fs::create_directories(dir, ec);
-  const fs::path profile = fs::temp_directory_path() / ("lode-plot-chromium-" + std::to_string(::getpid()));
+  const std::string page = "file://" + fs::absolute(html).string() + "#figure=";
+  struct Shot {
+    pid_t pid;
+    fs::path png, profile;
+    std::string id;
+  };
+  std::vector<Shot> running;
   int failures = 0;
-  for (const auto& id : figures) {
-    const fs::path png = fs::absolute(dir / (id + ".png"));
-    fs::remove(png, ec);
-    const int status = run_quietly({chromium, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
-                                    "--no-first-run", "--user-data-dir=" + profile.string(),
-                                    "--window-size=1200,640", "--virtual-time-budget=10000",
-                                    "--screenshot=" + png.string(),
-                                    "file://" + fs::absolute(html).string() + "#figure=" + id});
-    fs::remove_all(profile, ec);
-    if (status != 0 || !fs::exists(png)) {
-      std::fprintf(stderr, "lode: plot: Chromium could not photograph figure %s (exit %d)\n", id.c_str(), status);
+  const auto finish = [&](const Shot& shot) {
+    const int status = wait_for(shot.pid);
+    fs::remove_all(shot.profile, ec);
+    if (status != 0 || !fs::exists(shot.png)) {
+      std::fprintf(stderr, "lode: plot: Chromium could not photograph figure %s (exit %d)\n", shot.id.c_str(), status);
       ++failures;
     } else if (!quiet) {
-      std::printf("  %s\n", png.c_str());
+      std::printf("  %s\n", shot.png.c_str());
     }
+  };
+  for (std::size_t i = 0; i < figures.size(); ++i) {
+    if (running.size() == 2) {
+      finish(running.front());
+      running.erase(running.begin());
+    }
+    const std::string& id = figures[i];
+    Shot shot{-1, fs::absolute(dir / (id + ".png")),
+              fs::temp_directory_path() / ("lode-plot-" + std::to_string(::getpid()) + "-" + std::to_string(i)), id};
+    fs::remove(shot.png, ec);
+    shot.pid = spawn_quietly({chromium, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
+                              "--no-first-run", "--user-data-dir=" + shot.profile.string(), "--window-size=1200,640",
+                              "--virtual-time-budget=10000", "--screenshot=" + shot.png.string(), page + id});
+    if (shot.pid < 0) {
+      std::fprintf(stderr, "lode: plot: cannot start %s\n", chromium.c_str());
+      ++failures;
+      continue;
+    }
+    running.push_back(std::move(shot));
   }
+  for (const auto& shot : running) finish(shot);
   return failures ? kExitFault : kExitOk;
 }
 
