@@ -18,7 +18,11 @@ PACKAGES=(build-essential g++ cmake make pkg-config
   libhdf5-dev hdf5-tools python3-h5py python3-numpy        # recordings (HDF5) and their check
   openssl                                                   # DDS Security lab certificates
   clang libclang-rt-14-dev                                  # libFuzzer for the decoder fuzz tests
-  qemu-system-x86 linux-image-amd64 busybox-static kmod cpio can-utils)  # QEMU guest with a real vcan0 for the CAN test
+  qemu-system-x86 linux-image-amd64 busybox-static kmod cpio can-utils  # QEMU guest with a real vcan0 for the CAN test
+  chromium)                                                 # lode plot --png, and the report test's browser
+# Node.js and npm install the plot report's chart library (apps/lode/plot/package-lock.json);
+# a machine that already has them (e.g. from another Node.js distribution) keeps its own.
+command -v npm >/dev/null 2>&1 || PACKAGES+=(nodejs npm)
 
 as_root() { if [ "$(id -u)" -eq 0 ]; then "$@"; else sudo "$@"; fi; }
 missing=()
@@ -30,6 +34,9 @@ if [ ${#missing[@]} -gt 0 ]; then
   # initramfs, so skip building one for the host (saves minutes on a fresh machine).
   DEBIAN_FRONTEND=noninteractive INITRD=No as_root apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
+
+# uPlot, exactly as the lock file pins it (compiled into `lode`: nothing is fetched at run time).
+(cd apps/lode/plot && npm ci --no-audit --no-fund)
 
 jobs=$(nproc)
 cmake -S . -B build -DCMAKE_BUILD_TYPE=RelWithDebInfo

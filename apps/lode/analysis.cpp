@@ -143,6 +143,7 @@ void StepResponseTracker::close_window() {
     StepResponse& s = a.s;
     const double span = a.after - a.y0;
     s.rise_time_s = a.have10 && a.have90 ? a.t90 - a.t10 : kNaN;
+    s.rise_start_s = a.have10 ? a.t10 : kNaN;
     s.overshoot_pct = 100.0 * a.peak / std::abs(span);
     s.settling_time_s = a.last_sample_out ? kNaN : a.t_after_last_out - s.time_s;
     const std::size_t tail = std::min({std::max<std::size_t>(1, a.samples / 10), a.samples, kTailCapacity});

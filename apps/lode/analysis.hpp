@@ -27,6 +27,7 @@ struct StepResponse {
   double time_s = 0.0;       ///< when the reference stepped
   double amplitude = 0.0;    ///< reference after - before
   double rise_time_s = 0.0;  ///< 10 % -> 90 % of the step, interpolated; NaN if never reached
+  double rise_start_s = 0.0; ///< when the response crossed 10 % (so a plot can mark the rise); NaN if never
   double overshoot_pct = 0.0;
   double settling_time_s = 0.0;  ///< last entry into the band around the final reference; NaN if never
   double settling_band = 0.0;    ///< half-width of that band, in the axis unit

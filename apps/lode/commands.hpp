@@ -11,6 +11,7 @@ Command check_command();
 Command describe_command();
 Command plugins_command();
 Command replay_command();
+Command plot_command();
 Command bench_command();
 Command rtcheck_command();
 Command topics_command();

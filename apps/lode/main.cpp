@@ -12,9 +12,10 @@
 int main(int argc, char** argv) {
   spdlog::set_pattern("[%H:%M:%S.%e] [%^%l%$] %v");
   using namespace lode::cli;
-  const std::vector<Command> commands = {run_command(),    check_command(),   describe_command(), plugins_command(),
-                                         replay_command(), bench_command(),   rtcheck_command(),  topics_command(),
-                                         echo_command(),   record_command(),  set_command(),      swap_command()};
+  const std::vector<Command> commands = {run_command(),    check_command(),  describe_command(), plugins_command(),
+                                         replay_command(), plot_command(),   bench_command(),    rtcheck_command(),
+                                         topics_command(), echo_command(),   record_command(),   set_command(),
+                                         swap_command()};
   try {
     return run_command_line(argc, argv, commands);
   } catch (const std::exception& ex) {

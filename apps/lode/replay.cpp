@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "commands.hpp"
+#include "estimator_signals.hpp"
 #include "log_drain.hpp"
 #include "lode/event_log.hpp"
 #include "run_services.hpp"
@@ -193,13 +194,7 @@ std::optional<Tracked> select_signals(const Pipeline& p, const ReplayArgs& a, co
     t.estimators.push_back(std::move(e));
     t.signals.push_back(s);
   };
-  if (mon.estimate) add_estimator(*mon.estimate, "monitor.estimate");
-  for (const auto& sh : p.shadows()) {
-    const std::string port = mon.estimate ? mon.estimate->port : "";
-    auto s = port.empty() ? std::nullopt : p.signal(sh.name + "." + port);
-    if (s) add_estimator(*s, "shadow of " + sh.primary);
-    else cr.notes.push_back("shadow " + sh.name + " has no output '" + port + "' to compare");
-  }
+  for (const auto& e : estimator_signals(p, cr.notes)) add_estimator(e.signal, e.role);
   for (const auto& name : a.estimates) {
     auto s = p.signal(name);
     if (!s) {

@@ -1,6 +1,7 @@
 #include "run_analysis.hpp"
 
 #include <cmath>
+#include <cstdarg>
 #include <cstdio>
 #include <limits>
 #include <string>
@@ -14,6 +15,15 @@ using analysis::WindowAccumulator;
 namespace {
 
 constexpr double kForever = std::numeric_limits<double>::infinity();
+
+// fprintf that prints nothing when `out` is null (a summary computed only for its JSON).
+__attribute__((format(printf, 2, 3))) void say(std::FILE* out, const char* format, ...) {
+  if (!out) return;
+  va_list args;
+  va_start(args, format);
+  std::vfprintf(out, format, args);
+  va_end(args);
+}
 
 Json stats_json(const std::vector<AxisStats>& stats, const Elements& e) {
   Json j = Json::object();
@@ -30,17 +40,17 @@ Json stats_json(const std::vector<AxisStats>& stats, const Elements& e) {
   return j;
 }
 
-void print_stats(const char* title, const std::vector<AxisStats>& stats, const Elements& e, bool std_only) {
-  std::printf("  %-34s", title);
+void print_stats(std::FILE* out, const char* title, const std::vector<AxisStats>& stats, const Elements& e, bool std_only) {
+  say(out, "  %-34s", title);
   for (std::size_t i = 0; i < stats.size() && i < e.size(); ++i) {
     auto [scale, unit] = analysis::display_scale(e[i].unit, std_only ? stats[i].std : std::max(stats[i].rms, stats[i].max_abs));
     if (std_only)
-      std::printf("  %s %.3f %s", e[i].name.c_str(), stats[i].std * scale, unit.c_str());
+      say(out, "  %s %.3f %s", e[i].name.c_str(), stats[i].std * scale, unit.c_str());
     else
-      std::printf("  %s rms %.3f max %.3f %s", e[i].name.c_str(), stats[i].rms * scale, stats[i].max_abs * scale,
+      say(out, "  %s rms %.3f max %.3f %s", e[i].name.c_str(), stats[i].rms * scale, stats[i].max_abs * scale,
                   unit.c_str());
   }
-  std::printf("\n");
+  say(out, "\n");
 }
 
 }  // namespace
@@ -160,7 +170,7 @@ Json RunAnalysis::finish() {
     return *tap_->signals()[static_cast<std::size_t>(index)].elements;
   };
   const double h1 = std::isinf(st.h1) ? last_t_ : st.h1;
-  std::printf("\nsummary (%llu samples, %.3f s)\n", static_cast<unsigned long long>(samples_),
+  say(out_, "\nsummary (%llu samples, %.3f s)\n", static_cast<unsigned long long>(samples_),
               last_t_ + 1.0 / pipeline_.rate_hz());
   const Elements& truth = elements(truth_);
   const auto hold_truth = st.hold_truth->result();
@@ -169,14 +179,14 @@ Json RunAnalysis::finish() {
   noise["truth"] = stats_json(hold_truth, truth);
   char title[96];
   std::snprintf(title, sizeof title, "position noise std [%.2f, %.2f] s", st.h0, h1);
-  print_stats(title, hold_truth, truth, true);
+  print_stats(out_, title, hold_truth, truth, true);
   if (estimate_ >= 0) {
     const auto hold = st.hold_estimate->result();
     noise["estimate"] = stats_json(hold, elements(estimate_));
-    print_stats("  as the estimator reports it", hold, elements(estimate_), true);
+    print_stats(out_, "  as the estimator reports it", hold, elements(estimate_), true);
     const auto error = st.estimation_error->result();
     out["estimation_error"] = stats_json(error, elements(estimate_));
-    print_stats("estimation error (estimate-truth)", error, elements(estimate_), false);
+    print_stats(out_, "estimation error (estimate-truth)", error, elements(estimate_), false);
   }
   Json others = Json::object();
   for (std::size_t e = 0; e < extra_.size(); ++e) {
@@ -185,11 +195,11 @@ Json RunAnalysis::finish() {
     Json oj = Json::object();
     const auto hold = st.extra_hold[e].result();
     oj["hold_noise"] = stats_json(hold, el);
-    print_stats(("  as " + name + " reports it").c_str(), hold, el, true);
+    print_stats(out_, ("  as " + name + " reports it").c_str(), hold, el, true);
     if (st.extra_error[e]) {
       const auto error = st.extra_error[e]->result();
       oj["error_vs_truth"] = stats_json(error, el);
-      print_stats(("  " + name + " - truth").c_str(), error, el, false);
+      print_stats(out_, ("  " + name + " - truth").c_str(), error, el, false);
     }
     others[name] = std::move(oj);
   }
@@ -198,7 +208,7 @@ Json RunAnalysis::finish() {
   if (reference_ >= 0) {
     const auto track = st.tracking->result();
     out["tracking_error"] = stats_json(track, truth);
-    print_stats("tracking error (reference-truth)", track, truth, false);
+    print_stats(out_, "tracking error (reference-truth)", track, truth, false);
     const auto steps = st.steps->finish();
     Json sj = Json::array();
     for (const auto& s : steps) {
@@ -209,6 +219,7 @@ Json RunAnalysis::finish() {
       j["time_s"] = s.time_s;
       j["amplitude"] = s.amplitude;
       j["rise_time_s"] = s.rise_time_s;
+      j["rise_start_s"] = s.rise_start_s;
       j["overshoot_pct"] = s.overshoot_pct;
       j["settling_time_s"] = s.settling_time_s;
       j["settling_band"] = s.settling_band;
@@ -217,7 +228,7 @@ Json RunAnalysis::finish() {
       for (std::size_t i = 0; i < s.peak_coupling.size(); ++i)
         if (i != s.axis) coupling[truth[i].name] = s.peak_coupling[i];
       j["peak_coupling"] = std::move(coupling);
-      std::printf("  step %-8s at %.3f s of %+.1f %s: rise %.1f ms, overshoot %.1f %%, settling (+-%.2f %s) %.1f ms, "
+      say(out_, "  step %-8s at %.3f s of %+.1f %s: rise %.1f ms, overshoot %.1f %%, settling (+-%.2f %s) %.1f ms, "
                   "steady-state error %+.3f %s\n",
                   el.name.c_str(), s.time_s, s.amplitude * scale, unit.c_str(), s.rise_time_s * 1e3, s.overshoot_pct,
                   s.settling_band * scale, unit.c_str(), s.settling_time_s * 1e3, s.steady_state_error * scale,
@@ -227,7 +238,7 @@ Json RunAnalysis::finish() {
     out["steps"] = std::move(sj);
     if (st.steps->omitted() > 0) {
       out["steps_omitted"] = static_cast<std::uint64_t>(st.steps->omitted());
-      std::printf("  (%llu further steps not analysed: the summary keeps the first 1000)\n",
+      say(out_, "  (%llu further steps not analysed: the summary keeps the first 1000)\n",
                   static_cast<unsigned long long>(st.steps->omitted()));
     }
   }

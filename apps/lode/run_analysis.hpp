@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <cstdio>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -33,12 +34,17 @@ class RunAnalysis {
   /// The `monitor.show` signal's values in the last row drained (empty before the first).
   [[nodiscard]] std::vector<double> last_shown() const;
   [[nodiscard]] const SignalRef* shown() const;
-  /// Prints the summary to stdout and returns it as JSON members of the run summary.
+  /// One row laid out as the tap's records ([cycle, time_s, then each tapped signal at
+  /// tap().column(i)]) that did not come through the tap: `lode plot` feeds a recording's
+  /// rows through the same statistics, so its figures are the run summary's.
+  void add_row(const double* row);
+  /// Where finish() prints the summary (stdout by default; nullptr: nowhere).
+  void print_to(std::FILE* out) { out_ = out; }
+  /// Prints the summary and returns it as JSON members of the run summary.
   Json finish();
 
  private:
   struct Streams;
-  void add_row(const double* row);
 
   const Pipeline& pipeline_;
   std::unique_ptr<SignalTap> tap_;
@@ -47,6 +53,7 @@ class RunAnalysis {
   std::vector<double> scratch_, last_row_;
   std::uint64_t samples_ = 0;
   double first_t_ = 0.0, last_t_ = 0.0;
+  std::FILE* out_ = stdout;
   std::unique_ptr<Streams> streams_;
 };
 

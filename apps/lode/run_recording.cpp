@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "lode/sdk/plugin.hpp"
+#include "run_timing.hpp"
 
 namespace lode::cli {
 
@@ -169,6 +170,9 @@ Status RunRecorder::close_locked() {
   recorder_->set_attribute("dropped_cycles", static_cast<double>(dropped));
   recorder_->set_attribute("cycles", static_cast<double>(recorded_cycles_));
   recorder_->set_attribute("first_cycle", first_cycle_ ? static_cast<double>(*first_cycle_) : 0.0);
+  // The run's timing from its start until now (not only the recorded cycles: the scheduler
+  // keeps one set of statistics), so that `lode plot` shows what the summary prints.
+  recorder_->set_attribute("timing", run_timing_json(pipeline_, stats_).dump(-1));
   // The digest covers every cycle the pipeline ran: it describes this file only when the
   // recording saw all of them (opened before the first cycle, closed after the last, none
   // dropped). Otherwise say why there is none rather than claim a wrong one.
