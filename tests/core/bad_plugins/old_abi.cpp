@@ -1,10 +1,10 @@
-// A plugin built against the previous SDK (ABI 3: one Block with 15 virtual methods, the
-// "block" kind, ports as free text). Only the first two fields of its descriptor are read.
+// A plugin built against the previous SDK (ABI 4: models overrode virtual element-list
+// accessors; the descriptor had today's fields). Only the first two fields are read.
 #include <cstddef>
 #include <cstdint>
 
 namespace {
-struct DescriptorAbi3 {
+struct DescriptorAbi4 {
   std::uint32_t abi_version;
   std::uint32_t descriptor_size;
   const char* name;
@@ -20,7 +20,7 @@ struct DescriptorAbi3 {
 }  // namespace
 
 extern "C" __attribute__((visibility("default"))) const void* lode_plugin_descriptor() {
-  static const DescriptorAbi3 d{3, sizeof(DescriptorAbi3), "filter.from_the_past", 0, "1.0.0",
-                                "built for ABI 3", nullptr, 0, nullptr, 0, nullptr};
+  static const DescriptorAbi4 d{4, sizeof(DescriptorAbi4), "filter.from_the_past", 0, "1.0.0",
+                                "built for ABI 4", nullptr, 0, nullptr, 0, nullptr};
   return &d;
 }

@@ -32,7 +32,9 @@ namespace lode {
 
 /// 3: estimator state and innovation in Block (hot swap). 4: kinds by role, the port table
 /// (PortSpec), Board/Tunables/EstimatorState as optional interfaces beside a cycle-only Block.
-inline constexpr std::uint32_t kPluginAbiVersion = 4;
+/// 5: models hold the element lists they declare (declare_*_elements) instead of overriding
+/// virtual accessors.
+inline constexpr std::uint32_t kPluginAbiVersion = 5;
 inline constexpr const char* kPluginSymbol = "lode_plugin_descriptor";
 
 enum class PluginKind : std::uint32_t {
