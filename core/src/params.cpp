@@ -295,6 +295,17 @@ std::vector<double> Params::numbers(std::string_view key, std::vector<double> fa
   return numbers(key, size);
 }
 
+std::vector<double> Params::one_or_each(std::string_view key, std::vector<double> values, std::size_t count,
+                                        std::string_view each) {
+  if (values.size() == 1 && count > 1) values.assign(count, values.front());
+  if (values.size() != count) {
+    fail(key, "expected one number or " + std::to_string(count) + " (one per " + std::string(each) + "), got " +
+                  std::to_string(values.size()));
+    values.resize(count, values.empty() ? 0.0 : values.back());
+  }
+  return values;
+}
+
 std::vector<std::int64_t> Params::integers(std::string_view key, std::vector<std::int64_t> fallback) {
   LODE_PARAM_LOOKUP(key);
   if (!n.IsDefined() || n.IsNull()) return fallback;

@@ -153,6 +153,19 @@ TEST_F(ParamsFixture, ListsAndNestedMaps) {
   EXPECT_NE(text.find("blocks.b.axes[1].extra: unknown parameter"), std::string::npos) << text;
 }
 
+TEST_F(ParamsFixture, OneNumberIsSpreadToEveryElementAndAWrongCountIsReportedOnItsKey) {
+  auto p = load("kp: 2\nkd: [1, 2]\nki: [1, 2, 3]\n");
+  EXPECT_EQ(p.one_or_each("kp", p.numbers("kp"), 3, "axis"), (std::vector<double>{2, 2, 2}));
+  EXPECT_EQ(p.one_or_each("ki", p.numbers("ki"), 3, "axis"), (std::vector<double>{1, 2, 3}));
+  EXPECT_TRUE(p.ok());
+  // Two for three axes: reported, and padded with the last so the caller may still index it.
+  EXPECT_EQ(p.one_or_each("kd", p.numbers("kd"), 3, "axis"), (std::vector<double>{1, 2, 2}));
+  const auto text = diag.format();
+  EXPECT_NE(text.find("test.yaml:2:5: blocks.b.kd: expected one number or 3 (one per axis), got 2"), std::string::npos)
+      << text;
+  EXPECT_FALSE(p.ok());
+}
+
 TEST_F(ParamsFixture, FilePathsAreRelativeToTheConfigFilesDirectory) {
   node = YAML::Load("map: maps/board.regmap\nup: ../b.regmap\nabs: /etc/b.regmap\nempty: ''\nnum: 3\n");
   auto p = lode::detail::make_params(node, "blocks.b", "/srv/cfg/pipe.yaml", &diag);

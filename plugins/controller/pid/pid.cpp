@@ -85,14 +85,7 @@ std::string names_of(const Elements& elements) {
 
 /// One number for every axis or one per axis.
 std::vector<double> per_axis(Params& params, std::string_view key, std::vector<double> fallback, std::size_t axes) {
-  std::vector<double> values = params.numbers(key, std::move(fallback));
-  if (values.size() == 1 && axes > 1) values.assign(axes, values.front());
-  if (values.size() != axes) {
-    params.fail(key, "expected one number or " + std::to_string(axes) + " (one per axis), got " +
-                         std::to_string(values.size()));
-    values.resize(axes, values.empty() ? 0.0 : values.back());
-  }
-  return values;
+  return params.one_or_each(key, params.numbers(key, std::move(fallback)), axes, "axis");
 }
 
 std::size_t index_of(const Elements& elements, const std::string& name) {

@@ -56,6 +56,12 @@ class Params {
   std::vector<double> numbers(std::string_view key, std::optional<std::size_t> size = std::nullopt);
   std::vector<double> numbers(std::string_view key, std::vector<double> fallback,
                               std::optional<std::size_t> size = std::nullopt);
+  /// A list given per element (per axis, say) that may also be one number for all: one number
+  /// is spread to `count`; any other length but `count` is reported on `key` ("expected one
+  /// number or N (one per `each`), got M") and the list is padded or cut to `count`, so the
+  /// caller may still index it.
+  std::vector<double> one_or_each(std::string_view key, std::vector<double> values, std::size_t count,
+                                  std::string_view each);
   std::vector<std::int64_t> integers(std::string_view key, std::vector<std::int64_t> fallback);
   std::vector<std::string> texts(std::string_view key, std::vector<std::string> fallback);
   //@}
