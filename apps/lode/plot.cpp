@@ -17,6 +17,7 @@
 #include <fstream>
 
 #include "commands.hpp"
+#include "plot.hpp"
 #include "plot_data.hpp"
 #include "plot_html.hpp"
 #include "plot_metrics.hpp"
@@ -112,16 +113,18 @@ int write_pngs(const fs::path& html, const std::vector<std::string>& figures, co
   return failures ? kExitFault : kExitOk;
 }
 
-int plot(const Args& args) {
+}  // namespace
+
+int write_plot_report(const std::vector<std::string>& recordings, const fs::path& output, bool quiet,
+                      std::vector<std::string>* figures) {
   if constexpr (!LODE_PLOT_REPORTS) {
     std::fprintf(stderr, "lode: plot: built without its chart library (cd apps/lode/plot && npm ci, then rebuild)\n");
     return kExitFault;
   }
   const auto started = std::chrono::steady_clock::now();
-  const bool quiet = args.has_flag("--quiet");
   PluginRegistry registry;  // before the pipelines: their plugins' libraries outlive them
   std::vector<plot::LoadedRecording> loaded;
-  for (const auto& path : args.positional) {
+  for (const auto& path : recordings) {
     auto r = plot::load_recording(path, registry);
     if (!r) {
       std::fprintf(stderr, "lode: plot: %s\n", r.error().c_str());
@@ -156,10 +159,6 @@ int plot(const Args& args) {
   input.error_table = &error_table;
   input.spectra = &spectra;
   const plot::Report report = plot::report_html(input);
-
-  const fs::path recording(args.positional.front());
-  const fs::path output = args.has("-o,--output") ? fs::path(args.option("-o,--output"))
-                                                  : recording.parent_path() / (recording.stem().string() + ".html");
   {
     std::ofstream out(output, std::ios::binary);
     out << report.html;
@@ -175,7 +174,20 @@ int plot(const Args& args) {
                 report.figures.size(), signals.grid.size(), static_cast<double>(report.html.size()) / 1e6,
                 static_cast<double>(report.blob_bytes) / 1e6, seconds);
   }
-  if (args.has("--png")) return write_pngs(output, report.figures, args.option("--png"), quiet);
+  if (figures) *figures = report.figures;
+  return kExitOk;
+}
+
+namespace {
+
+int plot(const Args& args) {
+  const bool quiet = args.has_flag("--quiet");
+  const fs::path recording(args.positional.front());
+  const fs::path output = args.has("-o,--output") ? fs::path(args.option("-o,--output"))
+                                                  : recording.parent_path() / (recording.stem().string() + ".html");
+  std::vector<std::string> figures;
+  if (const int rc = write_plot_report(args.positional, output, quiet, &figures); rc != kExitOk) return rc;
+  if (args.has("--png")) return write_pngs(output, figures, args.option("--png"), quiet);
   return kExitOk;
 }
 

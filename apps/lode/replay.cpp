@@ -14,6 +14,7 @@
 
 #include "commands.hpp"
 #include "estimator_signals.hpp"
+#include "plot.hpp"
 #include "log_drain.hpp"
 #include "lode/event_log.hpp"
 #include "run_services.hpp"
@@ -349,7 +350,14 @@ int replay(const Args& args) {
   const ReplayReport report = replay_report(a.recording, source->text("pipeline"), source->rows,
                                             source->number("rate_hz").value_or(0), results, !mismatch, faulted);
   if (!a.quiet) std::printf("\n%s", report.markdown.c_str());
-  if (!a.report.empty()) {
+  if (fs::path(a.report).extension() == ".html") {
+    // The comparison as plots: the recording with every other configuration's replay beside it.
+    std::vector<std::string> recordings{a.recording};
+    for (const auto& cr : results)
+      if (!cr.recorded && !cr.output.empty()) recordings.push_back(cr.output);
+    const int rc = write_plot_report(recordings, a.report, a.quiet);
+    if (rc != kExitOk) return rc;
+  } else if (!a.report.empty()) {
     std::ofstream f(a.report);
     if (!f) {
       std::fprintf(stderr, "lode: replay: cannot write %s\n", a.report.c_str());
@@ -366,7 +374,8 @@ void declare(Declare& d) {
   d.list("--config", "OTHER.yaml", "another pipeline to replay the inputs through (repeatable)");
   d.list("--estimate", "BLOCK.PORT", "another output to compare (repeatable)");
   d.text("--output", "OUT.h5", "where the replayed outputs go (one file per configuration)");
-  d.text("--report", "R.md|R.json", "write the comparison report");
+  d.text("--report", "R.md|R.json|R.html",
+         "write the comparison report (.html: the plots of lode plot, every configuration beside the recording)");
   d.text("--reference", "BLOCK.PORT", "what the estimators are compared against (default monitor.truth)");
   d.flag("--quiet", "no progress");
 }

@@ -20,6 +20,14 @@ check_rc "record a demo run" 0 $? "$TMP/run.out"
   --quiet >"$TMP/replay.out" 2>&1
 check_rc "replay it through the constant-velocity Kalman filter" 0 $? "$TMP/replay.out"
 
+# lode replay --report R.html: the same report, the replay's estimate beside the recording's.
+"$LODE" replay "$TMP/demo.h5" --config "$SRC/config/replay/kawato_planar_cv.yaml" --output "$TMP/compared.h5" \
+  --quiet --report "$TMP/comparison.html" >"$TMP/compare.out" 2>&1
+check_rc "lode replay --report comparison.html" 0 $? "$TMP/compare.out"
+contains "replay --report .html: the replay's estimate beside the recording's" "$TMP/comparison.html" \
+  'kf.pose @ compared-kawato_planar_cv.h5'
+contains "replay --report .html: the steps section" "$TMP/comparison.html" '<section id="steps">'
+
 start=$EPOCHREALTIME
 "$LODE" plot "$TMP/demo.h5" "$TMP/replay-kawato_planar_cv.h5" -o "$TMP/report.html" >"$TMP/plot.out" 2>&1
 check_rc "lode plot" 0 $? "$TMP/plot.out"
