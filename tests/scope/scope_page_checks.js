@@ -3,7 +3,7 @@
 // and returns what the page showed, as JSON, for scope_test.sh to judge.
 //
 //   scopeChecks({signals: 10, seconds: 5, parameter: 'kf_hybrid.d', value: '0.4',
-//                swap: {block, plugin, params}, hold: 0})
+//                swap: {block, plugin, params}, trigger: true, window: 10, hold: 0})
 window.scopeChecks = async (o) => {
   const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
   const until = async (condition, ms, what) => {
@@ -20,6 +20,13 @@ window.scopeChecks = async (o) => {
   const boxes = [...document.querySelectorAll('#signal-list input')].slice(0, o.signals);
   for (const box of boxes) box.click();
   out.selected = boxes.map((b) => b.dataset.key);
+  if (o.window) {
+    const windowSelect = document.getElementById('window');
+    windowSelect.value = String(o.window);
+    windowSelect.dispatchEvent(new Event('change'));
+    await sleep(o.window * 1000);  // fill it, so every frame draws a whole window
+  }
+  out.window_s = parseFloat(document.getElementById('window').value);
   await until(() => scope.stats.redraws > 10, 20000, 'the plot drawing');
   await sleep(1000);  // past the start-up: count a steady state
 
@@ -78,6 +85,8 @@ window.scopeChecks = async (o) => {
     for (const v of data[1]) { min = Math.min(min, v); max = Math.max(max, v); }
     document.getElementById('trigger-source').value = out.selected[0];
     document.getElementById('trigger-level').value = String((min + max) / 2);
+    out.trigger_level = (min + max) / 2;
+    out.trigger_signal_range = [min, max];
     const mode = document.getElementById('trigger-mode');
     mode.value = 'single';
     mode.dispatchEvent(new Event('change'));

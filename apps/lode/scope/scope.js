@@ -196,7 +196,8 @@ function toggleSignal(meta, k, on) {
   const key = `${meta.topic}#${k}`;
   state.selected = state.selected.filter((s) => s.key !== key);
   if (on) {
-    state.selected.push({ key, topic: meta.topic, label: `${meta.block}.${meta.names[k]}`, unit: meta.units[k] || '' });
+    // block.port.element: a shadow's pose and disagreement have the same element names.
+    state.selected.push({ key, topic: meta.topic, label: `${meta.block}.${meta.port}.${meta.names[k]}`, unit: meta.units[k] || '' });
     watch([meta.topic]);
   }
   rebuildChart();
@@ -516,7 +517,9 @@ async function loadParameters() {
     const tr = table_.insertRow();
     tr.dataset.name = p.name;
     const range = p.boolean ? 'true|false' : `[${p.min}, ${p.max}]${p.integer ? ' integer' : ''}`;
-    tr.insertCell().textContent = p.name;
+    const nameCell = tr.insertCell();
+    nameCell.append(p.name, document.createElement('br'),
+                    Object.assign(document.createElement('span'), { className: 'unit', textContent: range }));
     const input = document.createElement('input');
     if (p.boolean) {
       input.type = 'checkbox';
@@ -529,10 +532,9 @@ async function loadParameters() {
     button.type = 'button';
     button.textContent = 'Set';
     const cell = tr.insertCell();
-    cell.append(input, ' ', Object.assign(document.createElement('span'), { className: 'unit', textContent: p.unit }), ' ', button);
-    tr.insertCell().append(Object.assign(document.createElement('span'), { className: 'unit', textContent: range }));
-    const reply = tr.insertCell();
+    const reply = document.createElement('div');
     reply.className = 'reply';
+    cell.append(input, ' ', Object.assign(document.createElement('span'), { className: 'unit', textContent: p.unit }), ' ', button, reply);
     button.addEventListener('click', async () => {
       const value = p.boolean ? String(input.checked) : input.value;
       const answer = await command({ kind: 'set', target: p.name, value });
