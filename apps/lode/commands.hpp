@@ -19,5 +19,6 @@ Command echo_command();
 Command record_command();
 Command set_command();
 Command swap_command();
+Command scope_command();
 
 }  // namespace lode::cli

@@ -15,7 +15,7 @@ int main(int argc, char** argv) {
   const std::vector<Command> commands = {run_command(),    check_command(),  describe_command(), plugins_command(),
                                          replay_command(), plot_command(),   bench_command(),    rtcheck_command(),
                                          topics_command(), echo_command(),   record_command(),   set_command(),
-                                         swap_command()};
+                                         swap_command(),   scope_command()};
   try {
     return run_command_line(argc, argv, commands);
   } catch (const std::exception& ex) {

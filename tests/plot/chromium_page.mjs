@@ -4,6 +4,7 @@
 //
 //   node chromium_page.mjs --url file:///x.html
 //        [--ready 'window.plotReady === true'] [--eval 'JSON.stringify(window.plotStats)']
+//        [--script checks.js]   (evaluated once ready, before --eval: defines what --eval calls)
 //        [--screenshot out.png [--full-page 1]] [--width 1400] [--height 900] [--timeout 60]
 //
 // Prints one JSON object {errors: [...], value: ..., ready_ms: N} on stdout; exits 1 when
@@ -15,7 +16,7 @@
 // Hermetic: port 0 (Chromium picks a free one and prints it), a fresh profile directory
 // named after this process, and the browser's whole process group killed at the end.
 import { spawn } from 'node:child_process';
-import { mkdtempSync, rmSync, writeFileSync } from 'node:fs';
+import { mkdtempSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
 import { createRequire } from 'node:module';
 import { tmpdir } from 'node:os';
 import { dirname, join } from 'node:path';
@@ -112,6 +113,7 @@ try {
   while (!(await evaluate(`(() => { try { return !!(${options.ready}); } catch { return false; } })()`)))
     await new Promise((r) => setTimeout(r, 20));
   const readyMs = Date.now() - started;
+  if (options.script) await evaluate(readFileSync(options.script, 'utf8'));
   const value = options.eval ? await evaluate(options.eval) : null;
   if (options.screenshot) {
     const shot = await page('Page.captureScreenshot', { format: 'png', captureBeyondViewport: options['full-page'] === '1' });
