@@ -1,9 +1,9 @@
 // Evaluated inside the lode scope page by chromium_page.mjs (--script), then called by --eval:
-// drives the page as a person would (ticks signals, types a parameter, presses Set and Swap)
+// drives the page as a person would (ticks signals, types a parameter, presses Set, Swap and Promote)
 // and returns what the page showed, as JSON, for scope_test.sh to judge.
 //
 //   scopeChecks({signals: 10, seconds: 5, parameter: 'kf_hybrid.d', value: '0.4',
-//                swap: {block, plugin, params}, trigger: true, window: 10, hold: 0})
+//                swap: {block, plugin, params}, promote: shadow, trigger: true, window: 10, hold: 0})
 window.scopeChecks = async (o) => {
   const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
   const until = async (condition, ms, what) => {
@@ -76,6 +76,17 @@ window.scopeChecks = async (o) => {
     out.reply_list_shows_it = document.querySelector('#reply-list li').textContent;
     await until(() => scope.events.some((e) => e.kind === 'swap' && e.text.includes(o.swap.plugin)), 20000, 'the swap event');
     out.swap_event = scope.events.find((e) => e.kind === 'swap').text;
+  }
+
+  if (o.promote) {
+    // The shadow's Promote button: it takes the primary's place at a cycle boundary.
+    const before = scope.replies.length;
+    document.querySelector(`#shadow-list .shadow[data-shadow="${o.promote}"] button`).click();
+    await until(() => scope.replies.length > before, 30000, 'the promote reply');
+    out.promote_reply = scope.replies[scope.replies.length - 1].reply;
+    const promoted = (e) => e.kind === 'swap' && e.text.startsWith(`promoted ${o.promote}`);
+    await until(() => scope.events.some(promoted), 20000, 'the promotion event');
+    out.promote_event = scope.events.find(promoted).text;
   }
 
   if (o.trigger) {

@@ -44,7 +44,8 @@ ok "lode scope serves $URL"
 # The page, driven in Chromium. The checks wait for the signals (DDS discovery) themselves.
 node "$PAGE" --url "$URL" --ready 'window.lodeScope !== undefined' --script "$SRC/tests/scope/scope_page_checks.js" \
   --eval "scopeChecks({signals: 10, seconds: 4, parameter: 'kf_hybrid.d', value: '0.4',
-          swap: {block: 'kf', plugin: 'estimator.hybrid_h2hinf', params: '$HYBRID'}, trigger: true})" \
+          swap: {block: 'kf', plugin: 'estimator.hybrid_h2hinf', params: '$HYBRID'}, promote: 'kf_coast',
+          trigger: true})" \
   --timeout 150 --screenshot "$TMP/scope.png" >"$TMP/page.json" 2>"$TMP/page.err"
 check_rc "the page runs in headless Chromium without a console error" 0 $? "$TMP/page.json"
 "$PY" - "$TMP/page.json" <<'EOF' || bad "what the page showed (above)"
@@ -76,6 +77,8 @@ check("set: the parameter event arrived and is listed", "kf_hybrid.d: 0.5 -> 0.4
 check("swap: ok", v["swap_reply"]["ok"] and v["swap_reply"]["message"].startswith("swapped kf: estimator.kalman -> estimator.hybrid_h2hinf"))
 check("swap: the reply listed", "→ ok: swapped kf" in v["reply_list_shows_it"])
 check("swap: the event arrived", v["swap_event"].startswith("swapped kf: estimator.kalman -> estimator.hybrid_h2hinf"))
+check("promote: ok", v["promote_reply"]["ok"] and v["promote_reply"]["message"].startswith("promoted kf_coast at cycle"))
+check("promote: the event arrived", v["promote_event"].startswith("promoted kf_coast at cycle"))
 check("the level trigger fired", v["trigger_state"].startswith("triggered at"))
 sys.exit(1 if problems else 0)
 EOF
