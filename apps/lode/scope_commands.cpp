@@ -1,8 +1,11 @@
 #include "scope_commands.hpp"
 
+#include <algorithm>
 #include <cstdlib>
 #include <nlohmann/json.hpp>
 #include <sstream>
+
+#include "lode/hot_swap.hpp"
 
 namespace lode::cli::scope {
 
@@ -89,27 +92,29 @@ std::optional<ControlRequest> request_from_json(const std::string& body, std::st
     r.kind = "list";
     r.block = text_field(j, "block");
   } else if (kind == "swap") {
-    // The same encoding as lode swap: options travel in the name field.
-    r.kind = "swap";
-    r.block = text_field(j, "block");
-    r.plugin = text_field(j, "plugin");
-    r.value = text_field(j, "params");
-    if (r.block.empty() || r.plugin.empty()) {
+    // What lode swap sends (swap_command).
+    SwapRequest s;
+    s.block = text_field(j, "block");
+    s.plugin = text_field(j, "plugin");
+    s.params = text_field(j, "params");
+    if (s.block.empty() || s.plugin.empty()) {
       error = "swap: needs a block and a plugin";
       return std::nullopt;
     }
-    if (j.contains("shadow_cycles") && j["shadow_cycles"].is_number_integer() && j["shadow_cycles"].get<long long>() > 0)
-      r.name = "shadow_cycles=" + std::to_string(j["shadow_cycles"].get<long long>());
-    if (j.value("cold", false)) r.name += std::string(r.name.empty() ? "" : ";") + "warm_start=false";
+    if (j.contains("shadow_cycles") && j["shadow_cycles"].is_number_integer()) {
+      const long long cycles = j["shadow_cycles"].get<long long>();
+      if (cycles > 0) s.shadow_cycles = static_cast<std::uint32_t>(std::min<long long>(cycles, 100000000));
+    }
+    s.warm_start = !j.value("cold", false);
+    r = swap_command(s);
   } else if (kind == "promote") {
-    // lode swap --promote SHADOW: a swap request whose value says "promote".
-    r.kind = "swap";
-    r.name = text_field(j, "shadow");
-    r.value = "promote";
-    if (r.name.empty()) {
+    // What lode swap --promote SHADOW sends.
+    const std::string shadow = text_field(j, "shadow");
+    if (shadow.empty()) {
       error = "promote: no shadow named";
       return std::nullopt;
     }
+    r = promote_command(shadow);
   } else {
     error = "unknown command kind '" + kind + "' (set, get, list, swap, promote)";
     return std::nullopt;

@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "commands.hpp"
+#include "lode/hot_swap.hpp"
 #include "remote_client.hpp"
 
 namespace lode::cli {
@@ -18,25 +19,19 @@ int swap(const Args& args) {
     return kExitConfig;
   }
   const std::string target = promote ? args.option("--promote") : args.positional[0];
-  // Swap options travel in the request's name field: "shadow_cycles=N;warm_start=false".
-  std::string swap_options;
-  if (args.has("--shadow-cycles")) swap_options = "shadow_cycles=" + std::to_string(args.integer("--shadow-cycles", 0));
-  if (args.has_flag("--cold")) swap_options += std::string(swap_options.empty() ? "" : ";") + "warm_start=false";
   return send_command(args, "swap", target, [&](const std::string& t) -> std::optional<ControlRequest> {
-    ControlRequest r;
-    r.kind = "swap";
     if (promote) {
-      r.name = t;  // the shadow to promote
+      ControlRequest r = promote_command(t);
       r.block = args.positional.empty() ? "" : args.positional[0];
-      r.plugin = "";
-      r.value = "promote";
-    } else {
-      r.block = t;
-      r.plugin = args.positional[1];
-      r.value = args.option("--params");
-      r.name = swap_options;
+      return r;
     }
-    return r;
+    SwapRequest s;
+    s.block = t;
+    s.plugin = args.positional[1];
+    s.params = args.option("--params");
+    if (args.has("--shadow-cycles")) s.shadow_cycles = static_cast<std::uint32_t>(args.integer("--shadow-cycles", 0));
+    s.warm_start = !args.has_flag("--cold");
+    return swap_command(s);
   });
 }
 

@@ -355,6 +355,26 @@ SwapReport HotSwap::promote(const std::string& shadow, std::chrono::milliseconds
   return wait_and_finish(std::move(p), timeout);
 }
 
+ControlRequest swap_command(const SwapRequest& request) {
+  ControlRequest r;
+  r.kind = "swap";
+  r.block = request.block;
+  r.plugin = request.plugin;
+  r.value = request.params;
+  r.client = request.client;
+  if (request.shadow_cycles > 0) r.name = "shadow_cycles=" + std::to_string(request.shadow_cycles);
+  if (!request.warm_start) r.name += std::string(r.name.empty() ? "" : ";") + "warm_start=false";
+  return r;
+}
+
+ControlRequest promote_command(const std::string& shadow) {
+  ControlRequest r;
+  r.kind = "swap";
+  r.name = shadow;
+  r.value = "promote";
+  return r;
+}
+
 ControlReply HotSwap::handle(const ControlRequest& request) {
   ControlReply reply;
   reply.id = request.id;

@@ -52,6 +52,14 @@ struct SwapRequest {
   std::string client;               ///< who asked (event log)
 };
 
+/// The command that asks a running pipeline for `request` (what `lode swap`, `lode scope` and
+/// any other client send; HotSwap::handle() reads it back): the options travel in the name
+/// field as "shadow_cycles=N;warm_start=false".
+ControlRequest swap_command(const SwapRequest& request);
+/// The command that promotes `shadow` into its primary's place: a swap whose value says
+/// "promote".
+ControlRequest promote_command(const std::string& shadow);
+
 struct SwapReport {
   bool ok = false;
   std::string message;  ///< one line: what happened, or precisely why not
