@@ -2,31 +2,9 @@
 
 namespace lode::cli {
 
-// Histogram keeps its bin counts private and offers only percentile(q), the upper edge of
-// the bin holding rank floor(q * (n - 1)) + 1. The count of each bin is recovered exactly from
-// that: the ranks sharing an edge are one bin, and the last rank of each is found by
-// bisection (at most 1184 bins x log2(n) queries, a few milliseconds at the end of a run).
 std::vector<std::pair<std::int64_t, std::uint64_t>> histogram_bins(const Histogram& histogram) {
   std::vector<std::pair<std::int64_t, std::uint64_t>> bins;
-  const std::uint64_t n = histogram.count();
-  if (n == 0) return bins;
-  if (n == 1) return {{histogram.max(), 1}};
-  // The quantile whose target rank is exactly r (1-based): halfway between two ranks.
-  const auto edge_of_rank = [&](std::uint64_t r) {
-    return histogram.percentile((static_cast<double>(r) - 0.5) / static_cast<double>(n - 1));
-  };
-  std::uint64_t first = 1;
-  while (first <= n) {
-    const std::int64_t edge = edge_of_rank(first);
-    std::uint64_t lo = first, hi = n;  // the last rank with this edge lies in [lo, hi]
-    while (lo < hi) {
-      const std::uint64_t mid = lo + (hi - lo + 1) / 2;
-      if (edge_of_rank(mid) == edge) lo = mid;
-      else hi = mid - 1;
-    }
-    bins.emplace_back(edge, lo - first + 1);
-    first = lo + 1;
-  }
+  histogram.for_each_bin([&](std::int64_t edge, std::uint64_t count) { bins.emplace_back(edge, count); });
   return bins;
 }
 

@@ -31,6 +31,18 @@ class Histogram {
   [[nodiscard]] std::int64_t percentile(double q) const noexcept;
   /// {count, min, p50, p90, p99, p99.9, max, mean} in microseconds.
   [[nodiscard]] Json summary_us() const;
+  /// Calls visit(upper_edge_ns, count) for every non-empty bin, lowest first; the edge is
+  /// clamped to max() as percentile() clamps it. For exporting the whole distribution.
+  template <typename Visit>
+  void for_each_bin(Visit&& visit) const {
+    const std::int64_t largest = max();
+    for (int i = 0; i < kBins; ++i) {
+      const std::uint64_t n = bins_[static_cast<std::size_t>(i)].load(std::memory_order_relaxed);
+      if (n == 0) continue;
+      const std::int64_t edge = upper_edge(i);
+      visit(edge < largest ? edge : largest, n);
+    }
+  }
 
   static int bin_of(std::int64_t value) noexcept;
   static std::int64_t upper_edge(int bin) noexcept;
