@@ -11,7 +11,10 @@ set -u
 BUILD=$(cd "$1" && pwd) SRC=$(cd "$2" && pwd)
 source "$SRC/tests/integration/test_lib.sh"
 
-KERNEL=$(ls -1 /boot/vmlinuz-* 2>/dev/null | sort -V | tail -1)
+source "$SRC/tests/qemu/guest_kernel.sh"
+# The stock kernel (LODE_CAN_GUEST_KERNEL=rt-amd64 boots the PREEMPT_RT one instead, to check
+# that these tests and the guest's end hold there too).
+KERNEL=$(guest_kernel "${LODE_CAN_GUEST_KERNEL:-amd64}")
 KVER=${KERNEL#/boot/vmlinuz-}
 QEMU=$(command -v qemu-system-x86_64)
 BUSYBOX=/bin/busybox
@@ -69,17 +72,20 @@ printf 'LODE=%s\nEMU=%s\nDAQ_TEST=%s\n' "$LODE" "$EMU" "$DAQ_TEST" > "$ROOT/gues
 echo "initramfs: $(du -m "$TMP/initramfs.cpio" | cut -f1) MB, kernel $KVER"
 
 # Two vCPUs (the RT thread and the module emulator each get one); no network; 10 min at most.
+# noirqdebug: under emulation the UARTs' interrupts, threaded on a PREEMPT_RT kernel, can reach
+# the handler after the transmitter was already refilled; the kernel then counts them as
+# spurious ("nobody cared"), disables IRQ 3 ("Disabling IRQ #3"), and ttyS1 stops mid-transfer.
 t0=$(date +%s%N)
 timeout 600 "$QEMU" -accel tcg -smp 2 -m 1024M -display none -no-reboot -nic none -monitor none \
-  -serial "file:$TMP/console.log" -serial "file:$TMP/out.tar" \
+  -serial "file:$TMP/console.log" -serial "file:$TMP/out.tar" -device "$GUEST_EXIT_DEVICE" \
   -kernel "$KERNEL" -initrd "$TMP/initramfs.cpio" \
-  -append "console=ttyS0 panic=-1 rdinit=/init quiet loglevel=3" >"$TMP/qemu.out" 2>&1
+  -append "console=ttyS0 panic=-1 rdinit=/init quiet loglevel=3 noirqdebug" >"$TMP/qemu.out" 2>&1
 qrc=$?
 t1=$(date +%s%N)
 tr -d '\r' < "$TMP/console.log" > "$TMP/console.txt"
 sed 's/^/    guest| /' "$TMP/console.txt"
 echo "qemu exit $qrc after $(( (t1 - t0) / 1000000 )) ms"
-[ $qrc -eq 0 ] || { bad "qemu ran to power-off (exit $qrc)"; cat "$TMP/qemu.out"; }
+[ $qrc -eq $GUEST_EXIT_DONE ] || { bad "the guest ran to its end and QEMU exited (exit $qrc, expected $GUEST_EXIT_DONE)"; cat "$TMP/qemu.out"; }
 contains "the guest brought up vcan0" "$TMP/console.txt" "GUEST: vcan0 up"
 contains "the guest finished" "$TMP/console.txt" "GUEST_DONE"
 contains "io.socketcan_daq unit tests pass on vcan0" "$TMP/console.txt" "^GTEST_RC=0"

@@ -256,8 +256,14 @@ TEST(SocketCanDaqOnInterface, ThousandHertzForTenSecondsWithNoLostFrame) {
 TEST(SocketCanDaqEmulator, SyncWatchdogDrivesTheOutputsSafeWhenTheMasterGoesQuiet) {
   Rig rig(200.0, exchange_pdo_timeout_us(), std::chrono::milliseconds(50));
   ASSERT_TRUE(rig.ok);
-  for (int k = 0; k < 20; ++k) ASSERT_EQ(rig.cycle(3.0, -1.5), "") << "cycle " << k;
-  const auto quiet_from = std::chrono::steady_clock::now();  // the last SYNC went out just before
+  // Taken before each cycle's SYNC goes out, so before the module receives the last one: a
+  // thread held off the CPU after that cycle can only lengthen the time measured below, never
+  // make a watchdog that waited its 50 ms look early (a time taken after the cycle could).
+  auto quiet_from = std::chrono::steady_clock::now();
+  for (int k = 0; k < 20; ++k) {
+    quiet_from = std::chrono::steady_clock::now();
+    ASSERT_EQ(rig.cycle(3.0, -1.5), "") << "cycle " << k;
+  }
   for (int i = 0; i < 200 && rig.node->outputs() != std::vector<std::int64_t>{300, -150}; ++i)
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
   ASSERT_EQ(rig.node->outputs(), (std::vector<std::int64_t>{300, -150}));
