@@ -47,10 +47,15 @@ def check(label, condition, detail=""):
     ok(label) if condition else bad(label, detail)
 
 
+# The RT thread pinned to the last CPU we may use (when there are two or more): lode's
+# other threads must keep off it.
+ALLOWED_CPUS = sorted(os.sched_getaffinity(0))
+RT_CPU = ALLOWED_CPUS[-1] if len(ALLOWED_CPUS) > 1 else None
 PIPELINE = """\
 pipeline: service_probe
 rate_hz: 500
 duration_s: 2
+""" + (f"realtime: {{ cpu: {RT_CPU} }}\n" if RT_CPU is not None else "") + """\
 blocks:
   ref:
     plugin: source.step
@@ -154,6 +159,29 @@ def read(path):
         return f.read()
 
 
+def cpu_list(text):
+    cpus = set()
+    for part in text.strip().split(","):
+        lo, _, hi = part.partition("-")
+        cpus.update(range(int(lo), int(hi or lo) + 1))
+    return cpus
+
+
+def thread_cpus(pid):
+    """{thread id: (name, CPUs it may run on)} of a running process."""
+    threads = {}
+    for tid in os.listdir(f"/proc/{pid}/task"):
+        try:
+            name = read(f"/proc/{pid}/task/{tid}/comm").strip()
+            status = read(f"/proc/{pid}/task/{tid}/status")
+        except OSError:
+            continue  # the thread ended meanwhile
+        m = re.search(r"^Cpus_allowed_list:\s*(\S+)", status, re.M)
+        if m:
+            threads[tid] = (name, cpu_list(m.group(1)))
+    return threads
+
+
 def lode_set(env, what):
     r = subprocess.run([LODE, "set", "--local", "--pipeline", "service_probe", "--timeout", "5"] + what, env=env,
                        capture_output=True, text=True, timeout=30)
@@ -181,6 +209,16 @@ def watchdog_case(tmp, env):
               str(manager.statuses()[:3]))
         pings = manager.wait_for("WATCHDOG=1", count=4, timeout=20, since=ready_at + 0.01)
         check("WATCHDOG=1 arrives repeatedly while the loop runs", pings, f"{len(manager.times('WATCHDOG=1'))} pings")
+
+        if RT_CPU is None:
+            print("    (one CPU: no affinity to check)")
+        else:
+            threads = thread_cpus(proc.pid)
+            rt = [cpus for name, cpus in threads.values() if name == "lode-rt"]
+            others = {f"{name} ({tid})": sorted(cpus) for tid, (name, cpus) in threads.items() if name != "lode-rt"}
+            check(f"the RT thread runs on cpu {RT_CPU} alone", rt == [{RT_CPU}], str(rt))
+            check(f"lode's {len(others)} other threads keep off cpu {RT_CPU}",
+                  others and all(RT_CPU not in cpus for cpus in others.values()), str(others))
 
         rc, reply = lode_set(env, ["freezer.freeze", "1"])
         frozen_at = time.monotonic()
