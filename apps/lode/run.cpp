@@ -150,7 +150,8 @@ int run(const Args& args) {
   }
   const double duration = args.number("--duration", p.default_duration_s().value_or(10.0));
   // 0 cycles: the scheduler runs until stopped.
-  const auto cycles = until_stopped ? std::uint64_t{0} : static_cast<std::uint64_t>(std::llround(duration * p.rate_hz()));
+  const auto cycles =
+      until_stopped ? std::uint64_t{0} : static_cast<std::uint64_t>(std::llround(duration * p.rate_hz()));
   if (cycles == 0 && !until_stopped) {
     // The scheduler reads 0 cycles as "until stopped": never let a short duration round to it.
     say(stderr, Severity::error, "lode: a duration of %g s is shorter than one cycle at %g Hz\n", duration, p.rate_hz());
@@ -188,7 +189,7 @@ int run(const Args& args) {
   }
   if (!(*services)->wait_for_subscribers()) {
     say(stderr, Severity::error, "lode: fewer than %d subscribers matched within %g s; nothing was started\n",
-                 options->wait_subscribers, options->wait_s);
+        options->wait_subscribers, options->wait_s);
     return kExitFault;
   }
 
@@ -261,7 +262,8 @@ int run(const Args& args) {
   // A bug that kills the process (SIGSEGV, an exception out of step()) still drives the outputs safe.
   CrashGuard crash_guard(p);
   const std::string start_text = "pipeline '" + p.name() + "' at " + std::to_string(p.rate_hz()) + " Hz, " +
-                                 clock_name + " clock, " + (until_stopped ? "until stopped" : std::to_string(duration) + " s");
+                                 clock_name + " clock, " +
+                                 (until_stopped ? "until stopped" : std::to_string(duration) + " s");
   const auto outcome = execute_run(
       p, sched, events, **services, cycles, start_text, on_idle,
       [&] {
