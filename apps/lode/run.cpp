@@ -219,11 +219,12 @@ int run(const Args& args) {
     const std::uint64_t executed = st.executed.load();
     const double dt = std::chrono::duration<double>(now - status_at).count();
     const double rate = dt > 0 ? static_cast<double>(executed - status_executed) / dt : 0.0;
+    const bool stalled = executed == status_executed && executed > 0;  // `systemctl status` shows it first
     status_executed = executed;
     status_at = now;
     char text[160];
-    std::snprintf(text, sizeof text, "cycle %llu, %.1f Hz, overruns %llu, faults %llu",
-                  static_cast<unsigned long long>(st.cycles.load()), rate,
+    std::snprintf(text, sizeof text, "%scycle %llu, %.1f Hz, overruns %llu, faults %llu",
+                  stalled ? "NO PROGRESS: " : "", static_cast<unsigned long long>(st.cycles.load()), rate,
                   static_cast<unsigned long long>(st.overruns.load()), static_cast<unsigned long long>(faults_seen));
     return std::string(text);
   };
@@ -251,13 +252,11 @@ int run(const Args& args) {
       notifier.stopping("stopping on a signal at cycle " + std::to_string(sched.stats().cycles.load()) +
                         ": driving the outputs safe");
     // The RT loop's progress, seen from here: a stuck step() stops the count, not this thread.
-    const std::uint64_t executed = sched.stats().executed.load();
-    if (notifier.on_idle(executed, service_status) == ServiceNotifier::Idle::stalled)
+    if (notifier.on_idle(sched.stats().executed.load(), service_status) == ServiceNotifier::Idle::stalled)
       say(stderr, Severity::error,
-          "lode: the real-time loop has made no progress for %.1f s (stuck after %llu cycles); watchdog pings "
-          "withheld\n",
+          "lode: the real-time loop has made no progress for %.1f s (stuck at cycle %llu); watchdog pings withheld\n",
           std::chrono::duration<double>(notifier.watchdog_interval()).count() / 2,
-          static_cast<unsigned long long>(executed));
+          static_cast<unsigned long long>(sched.stats().cycles.load()));
   };
   // A bug that kills the process (SIGSEGV, an exception out of step()) still drives the outputs safe.
   CrashGuard crash_guard(p);
