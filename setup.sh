@@ -20,6 +20,7 @@ PACKAGES=(build-essential g++ cmake make pkg-config
   clang libclang-rt-14-dev                                  # libFuzzer for the decoder fuzz tests
   qemu-system-x86 linux-image-amd64 busybox-static kmod cpio can-utils  # QEMU guest with a real vcan0 for the CAN test
   libcpp-httplib-dev                                        # lode scope's HTTP server
+  libsystemd-dev                                            # lode run under systemd: sd_notify (READY, watchdog)
   chromium)                                                 # lode plot --png, and the report test's browser
 # Node.js and npm install the plot report's chart library (apps/lode/plot/package-lock.json);
 # a machine that already has them (e.g. from another Node.js distribution) keeps its own.

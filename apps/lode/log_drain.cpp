@@ -4,13 +4,16 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <unistd.h>
+
 #include <chrono>
 
+#include "journal_output.hpp"
 #include "lode/sdk/rt_log.hpp"
 
 namespace lode {
 
-LogDrain::LogDrain(EventLog& events) : events_(events) {
+LogDrain::LogDrain(EventLog& events) : events_(events), journal_(cli::is_journal_stream(STDERR_FILENO)) {
   thread_ = std::thread([this] {
     while (running_.load(std::memory_order_relaxed)) {
       drain_once();
@@ -33,11 +36,21 @@ void LogDrain::drain_once() {
     } catch (const fmt::format_error&) {
       text = std::string(r.format) + " (bad log format)";
     }
-    const auto level = r.level == LogLevel::error  ? spdlog::level::err
-                       : r.level == LogLevel::warn ? spdlog::level::warn
-                       : r.level == LogLevel::info ? spdlog::level::info
-                                                   : spdlog::level::debug;
-    spdlog::log(level, "[{} cycle {}] {}", r.source, r.cycle, text);
+    if (journal_) {
+      // The journal stamps the time and reads the level from the prefix.
+      const auto severity = r.level == LogLevel::error  ? cli::Severity::error
+                            : r.level == LogLevel::warn ? cli::Severity::warning
+                            : r.level == LogLevel::info ? cli::Severity::info
+                                                        : cli::Severity::debug;
+      cli::say(stderr, severity, "lode: [%s cycle %llu] %s\n", r.source, static_cast<unsigned long long>(r.cycle),
+               text.c_str());
+    } else {
+      const auto level = r.level == LogLevel::error  ? spdlog::level::err
+                         : r.level == LogLevel::warn ? spdlog::level::warn
+                         : r.level == LogLevel::info ? spdlog::level::info
+                                                     : spdlog::level::debug;
+      spdlog::log(level, "[{} cycle {}] {}", r.source, r.cycle, text);
+    }
     if (r.level >= LogLevel::warn)
       events_.post(r.time_ns, r.cycle, r.level == LogLevel::error ? "error" : "warning",
                    std::string(r.source) + ": " + text);

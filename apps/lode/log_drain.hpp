@@ -1,4 +1,6 @@
 // Drains the RT log ring into spdlog (and warnings into the event log), off the RT thread.
+// Under systemd (stderr is the journal) each record is a line on stderr whose "<N>" prefix
+// carries its level, instead of spdlog's timestamped line on stdout.
 #pragma once
 
 #include <atomic>
@@ -21,6 +23,7 @@ class LogDrain {
 
  private:
   EventLog& events_;
+  const bool journal_;
   std::atomic<bool> running_{true};
   std::thread thread_;
   std::uint64_t reported_drops_ = 0;

@@ -16,6 +16,7 @@
 
 #include "analysis.hpp"
 #include "commands.hpp"
+#include "journal_output.hpp"
 #include "load_config.hpp"
 #include "log_drain.hpp"
 #include "lode/crash_guard.hpp"
@@ -23,6 +24,7 @@
 #include "run_analysis.hpp"
 #include "run_report.hpp"
 #include "run_services.hpp"
+#include "service_notify.hpp"
 
 namespace lode::cli {
 namespace {
@@ -31,7 +33,8 @@ using SteadyClock = std::chrono::steady_clock;
 
 void declare(Declare& d) {
   d.positional("CONFIG", "the pipeline file", 1, 1);
-  d.number("--duration", "S", "how long to run (default: the pipeline's duration_s, else until Ctrl-C)", 0, 1e9);
+  d.number("--duration", "S", "how long to run (default: the pipeline's duration_s, else 10 s)", 0, 1e9);
+  d.flag("--until-stopped", "run until SIGTERM or Ctrl-C, whatever duration_s says (a service: systemctl stop)");
   d.choice("--clock", {"sim", "real"}, "the clock (default: the pipeline's realtime.clock, else sim)");
   d.text("--summary-json", "FILE", "write the summary as JSON");
   d.flag("--quiet", "no status line");
@@ -59,7 +62,7 @@ std::optional<RunServiceOptions> service_options(const Args& args, bool simulate
     o.domain = static_cast<int>(args.integer("--domain", 0));
   } else if (const auto env = dds::domain_from_environment()) {
     if (*env < 0 || *env > 232) {
-      std::fprintf(stderr, "lode: LODE_DDS_DOMAIN must be an integer in [0, 232], got '%s'\n", std::getenv("LODE_DDS_DOMAIN"));
+      say(stderr, Severity::error, "lode: LODE_DDS_DOMAIN must be an integer in [0, 232], got '%s'\n", std::getenv("LODE_DDS_DOMAIN"));
       return std::nullopt;
     }
     o.domain = *env;
@@ -78,7 +81,8 @@ std::string format_value(double v, const std::string& unit) {
 
 /// The one status line while the pipeline runs (cycle, time, rate, worst wake-up latency,
 /// overruns, the `monitor.show` signal), rewritten in place on a terminal, one line a second
-/// otherwise.
+/// otherwise; none under the journal (the service's STATUS= says it to `systemctl status`
+/// without a line a second in the log).
 class StatusLine {
  public:
   StatusLine(const Pipeline& p, const Scheduler& s, const RunAnalysis& a, bool real_clock, bool quiet)
@@ -139,18 +143,35 @@ int run(const Args& args) {
   // Without --clock, the pipeline's realtime.clock (sim unless it drives hardware).
   const std::string clock_name = args.option("--clock", p.realtime().real_clock ? "real" : "sim");
   const bool simulated = clock_name == "sim";
+  const bool until_stopped = args.has_flag("--until-stopped");
+  if (until_stopped && args.has("--duration")) {
+    say(stderr, Severity::error, "lode: --duration and --until-stopped contradict each other; give one\n");
+    return kExitConfig;
+  }
   const double duration = args.number("--duration", p.default_duration_s().value_or(10.0));
-  const auto cycles = static_cast<std::uint64_t>(std::llround(duration * p.rate_hz()));
-  if (cycles == 0) {
+  // 0 cycles: the scheduler runs until stopped.
+  const auto cycles =
+      until_stopped ? std::uint64_t{0} : static_cast<std::uint64_t>(std::llround(duration * p.rate_hz()));
+  if (cycles == 0 && !until_stopped) {
     // The scheduler reads 0 cycles as "until stopped": never let a short duration round to it.
-    std::fprintf(stderr, "lode: a duration of %g s is shorter than one cycle at %g Hz\n", duration, p.rate_hz());
+    say(stderr, Severity::error, "lode: a duration of %g s is shorter than one cycle at %g Hz\n", duration, p.rate_hz());
     return kExitConfig;
   }
   const auto options = service_options(args, simulated);
   if (!options) return kExitConfig;
+  // Under systemd: lines carry their priority, and no status line (nobody watches a journal
+  // redraw); the service manager is told when the loop runs and that it keeps running.
+  const bool journal = is_journal_stream(STDERR_FILENO);
+  ServiceNotifier notifier;
+  if (!simulated) {
+    // Before any other thread exists: they all inherit the affinity.
+    if (const auto w = keep_threads_off_cpu(p.realtime().cpu); !w.empty())
+      say(stderr, Severity::warning, "lode: warning: %s\n", w.c_str());
+  }
 
   // The end-of-run summary, computed as the rows are drained (memory independent of length).
   RunAnalysis analysis(p);
+  analysis.print_to(severity_stream(stdout, Severity::info));
   EventLog events;
   LogDrain drain(events);
   install_stop_handlers();
@@ -163,16 +184,56 @@ int run(const Args& args) {
   // Everything that can fail starts before activation: nothing runs half-configured.
   auto services = RunServices::start(p, sched, events, *options);
   if (!services) {
-    std::fprintf(stderr, "lode: %s; nothing was started\n", services.error().c_str());
+    say(stderr, Severity::error, "lode: %s; nothing was started\n", services.error().c_str());
     return kExitFault;
   }
   if (!(*services)->wait_for_subscribers()) {
-    std::fprintf(stderr, "lode: fewer than %d subscribers matched within %g s; nothing was started\n",
-                 options->wait_subscribers, options->wait_s);
+    say(stderr, Severity::error, "lode: fewer than %d subscribers matched within %g s; nothing was started\n",
+        options->wait_subscribers, options->wait_s);
     return kExitFault;
   }
 
-  StatusLine status(p, sched, analysis, !simulated, args.has_flag("--quiet"));
+  StatusLine status(p, sched, analysis, !simulated, args.has_flag("--quiet") || journal);
+  // Events as they happen, under the journal (a terminal has the status line and the
+  // summary); counted for the service's STATUS either way.
+  const bool echo_events = journal;
+  std::size_t event_cursor = 0;
+  std::uint64_t faults_seen = 0;
+  const auto follow_events = [&] {
+    if (!echo_events && !notifier.active()) return;
+    for (const Event& e : events.since(event_cursor)) {
+      const bool fault = e.kind == "fault" || e.kind == "error";
+      if (fault || e.kind == "health") ++faults_seen;
+      if (!echo_events || e.kind == "start" || e.kind == "stop") continue;  // the start line and the summary say those
+      const Severity severity = fault ? Severity::error
+                                : e.kind == "warning" || e.kind == "health" || e.kind == "dropped" ? Severity::warning
+                                                                                                     : Severity::info;
+      say(stderr, severity, "lode: %s: %s\n", e.kind.c_str(), e.text.c_str());
+    }
+  };
+  std::uint64_t status_executed = 0;
+  auto status_at = SteadyClock::now();
+  const auto service_status = [&] {
+    const auto& st = sched.stats();
+    const auto now = SteadyClock::now();
+    const std::uint64_t executed = st.executed.load();
+    const double dt = std::chrono::duration<double>(now - status_at).count();
+    const double rate = dt > 0 ? static_cast<double>(executed - status_executed) / dt : 0.0;
+    const bool stalled = executed == status_executed && executed > 0;  // `systemctl status` shows it first
+    status_executed = executed;
+    status_at = now;
+    char text[160];
+    std::snprintf(text, sizeof text, "%scycle %llu, %.1f Hz, overruns %llu, faults %llu",
+                  stalled ? "NO PROGRESS: " : "", static_cast<unsigned long long>(st.cycles.load()), rate,
+                  static_cast<unsigned long long>(st.overruns.load()), static_cast<unsigned long long>(faults_seen));
+    return std::string(text);
+  };
+  const auto safe_outcome = [&](const RunResult& r) {
+    const auto cycle = std::to_string(sched.stats().cycles.load());
+    return (r.faulted ? "fault: " + r.fault : r.stopped_by_request ? "stopped by signal at cycle " + cycle
+                                                                   : "completed " + cycle + " cycles") +
+           " (outputs driven safe)";
+  };
   // --speed X (simulated clock): simulated time runs at most X times real time, so a
   // simulation can be watched live; the outputs are those of an unpaced run.
   const double speed = args.number("--speed", 0.0);
@@ -186,24 +247,50 @@ int run(const Args& args) {
     }
     analysis.drain();
     status.maybe_print();
+    follow_events();
+    if (stop_requested().load())
+      notifier.stopping("stopping on a signal at cycle " + std::to_string(sched.stats().cycles.load()) +
+                        ": driving the outputs safe");
+    // The RT loop's progress, seen from here: a stuck step() stops the count, not this thread.
+    if (notifier.on_idle(sched.stats().executed.load(), service_status) == ServiceNotifier::Idle::stalled)
+      say(stderr, Severity::error,
+          "lode: the real-time loop has made no progress for %.1f s (stuck at cycle %llu); watchdog pings withheld\n",
+          std::chrono::duration<double>(notifier.watchdog_interval()).count() / 2,
+          static_cast<unsigned long long>(sched.stats().cycles.load()));
   };
   // A bug that kills the process (SIGSEGV, an exception out of step()) still drives the outputs safe.
   CrashGuard crash_guard(p);
+  const std::string start_text = "pipeline '" + p.name() + "' at " + std::to_string(p.rate_hz()) + " Hz, " +
+                                 clock_name + " clock, " +
+                                 (until_stopped ? "until stopped" : std::to_string(duration) + " s");
   const auto outcome = execute_run(
-      p, sched, events, **services, cycles,
-      "pipeline '" + p.name() + "' at " + std::to_string(p.rate_hz()) + " Hz, " + clock_name + " clock, " +
-          std::to_string(duration) + " s",
-      on_idle, [&] {
+      p, sched, events, **services, cycles, start_text, on_idle,
+      [&] {
         analysis.drain();
         status.print(true);
         drain.stop();
+        follow_events();
+        notifier.stopping("stopping at cycle " + std::to_string(sched.stats().cycles.load()) +
+                          ": outputs driven safe");
+      },
+      [&] {
+        // On a terminal the status line shows the start; a service's log needs a line.
+        if (!journal && !notifier.active()) return;
+        char length[48] = "until stopped";
+        if (!until_stopped) std::snprintf(length, sizeof length, "%g s", duration);
+        say(stderr, Severity::info, "lode: started pipeline '%s' (%s) at %g Hz, %s clock, %s\n", p.name().c_str(),
+            loaded->path.c_str(), p.rate_hz(), clock_name.c_str(), length);
       });
   if (!outcome) {
-    std::fprintf(stderr, "lode: %s\n", outcome.error().c_str());
+    say(stderr, Severity::error, "lode: %s\n", outcome.error().c_str());
+    notifier.status("not started: " + outcome.error());
     return kExitFault;
   }
   const RunResult& result = *outcome;
-  for (const auto& w : result.warnings) std::fprintf(stderr, "lode: warning: %s\n", w.c_str());
+  follow_events();  // the stop event and what services.finish() posted
+  // Under the journal each of these was already echoed as its "warning" event.
+  if (!echo_events)
+    for (const auto& w : result.warnings) say(stderr, Severity::warning, "lode: warning: %s\n", w.c_str());
 
   const RunFacts facts{p, sched, result, analysis, **services, events, loaded->path, simulated};
   const Json summary = finish_run_summary(facts);
@@ -212,15 +299,16 @@ int run(const Args& args) {
     const std::string path = args.option("--summary-json");
     std::ofstream f(path);
     if (!f) {
-      std::fprintf(stderr, "lode: cannot write %s\n", path.c_str());
+      say(stderr, Severity::error, "lode: cannot write %s\n", path.c_str());
       return kExitFault;
     }
     f << summary.dump() << "\n";
   }
+  notifier.status(safe_outcome(result));
   const int rc = result.faulted ? kExitFault : kExitOk;
   if ((*services)->dds_stuck()) {
     // Results are written; Fast DDS's own teardown would block on the stuck thread.
-    std::fprintf(stderr, "lode: warning: telemetry publisher stuck inside Fast DDS; leaving without DDS teardown\n");
+    say(stderr, Severity::warning, "lode: warning: telemetry publisher stuck inside Fast DDS; leaving without DDS teardown\n");
     std::fflush(nullptr);
     _exit(rc);
   }

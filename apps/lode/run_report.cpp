@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <string>
 
+#include "journal_output.hpp"
 #include "lode/sdk/rt_log.hpp"
 
 namespace lode::cli {
@@ -65,57 +66,66 @@ Json finish_run_summary(const RunFacts& f) {
 
 void print_run_summary(const Json& summary, const RunFacts& f) {
   const auto& st = f.scheduler.stats();
+  std::FILE* const out = severity_stream(stdout, Severity::info);  // stdout itself unless it is the journal
   // Timing, human-readable.
   const auto& tj = *summary.find("timing");
   if (!f.simulated) {
     const auto& wl = *tj.find("wake_latency");
-    std::printf("  timing: %llu cycles run at %.1f Hz achieved; wake-up latency p50 %.1f us, p99 %.1f us, "
-                "p99.9 %.1f us, max %.1f us; overruns %llu, missed periods %llu\n",
-                static_cast<unsigned long long>(st.executed.load()), tj.find("achieved_rate_hz")->as_number(),
-                wl.find("p50_us")->as_number(), wl.find("p99_us")->as_number(),
-                wl.find("p999_us")->as_number(), wl.find("max_us")->as_number(),
-                static_cast<unsigned long long>(st.overruns.load()),
-                static_cast<unsigned long long>(st.missed_periods.load()));
+    std::fprintf(out, "  timing: %llu cycles run at %.1f Hz achieved; wake-up latency p50 %.1f us, p99 %.1f us, "
+                 "p99.9 %.1f us, max %.1f us; overruns %llu, missed periods %llu\n",
+                 static_cast<unsigned long long>(st.executed.load()), tj.find("achieved_rate_hz")->as_number(),
+                 wl.find("p50_us")->as_number(), wl.find("p99_us")->as_number(),
+                 wl.find("p999_us")->as_number(), wl.find("max_us")->as_number(),
+                 static_cast<unsigned long long>(st.overruns.load()),
+                 static_cast<unsigned long long>(st.missed_periods.load()));
   } else {
-    std::printf("  timing: %llu cycles simulated in %.3f s wall (%.0fx real time)\n",
-                static_cast<unsigned long long>(st.cycles.load()), f.result.wall_s,
-                tj.find("speed_vs_realtime")->as_number());
+    std::fprintf(out, "  timing: %llu cycles simulated in %.3f s wall (%.0fx real time)\n",
+                 static_cast<unsigned long long>(st.cycles.load()), f.result.wall_s,
+                 tj.find("speed_vs_realtime")->as_number());
   }
-  std::printf("  step cost per block (p50 / p99 / max, us):");
+  std::fprintf(out, "  step cost per block (p50 / p99 / max, us):");
   for (const auto& op : f.pipeline.ops())
-    std::printf("  %s %.2f/%.2f/%.1f", op.label.c_str(), static_cast<double>(op.exec_time->percentile(0.5)) / 1e3,
-                static_cast<double>(op.exec_time->percentile(0.99)) / 1e3,
-                static_cast<double>(op.exec_time->max()) / 1e3);
-  std::printf("\n");
+    std::fprintf(out, "  %s %.2f/%.2f/%.1f", op.label.c_str(), static_cast<double>(op.exec_time->percentile(0.5)) / 1e3,
+                 static_cast<double>(op.exec_time->percentile(0.99)) / 1e3,
+                 static_cast<double>(op.exec_time->max()) / 1e3);
+  std::fprintf(out, "\n");
   if (const auto* t = summary.find("telemetry"))
-    std::printf("  telemetry: domain %lld, %llu samples handed over, %llu dropped by the RT side (rings full), "
-                "%llu published\n",
-                static_cast<long long>(t->find("domain")->as_number()),
-                static_cast<unsigned long long>(t->find("samples_offered")->as_number()),
-                static_cast<unsigned long long>(t->find("ring_dropped")->as_number()),
-                static_cast<unsigned long long>(t->find("published") ? t->find("published")->as_number() : 0));
+    std::fprintf(out, "  telemetry: domain %lld, %llu samples handed over, %llu dropped by the RT side (rings full), "
+                 "%llu published\n",
+                 static_cast<long long>(t->find("domain")->as_number()),
+                 static_cast<unsigned long long>(t->find("samples_offered")->as_number()),
+                 static_cast<unsigned long long>(t->find("ring_dropped")->as_number()),
+                 static_cast<unsigned long long>(t->find("published") ? t->find("published")->as_number() : 0));
   if (const auto* h = summary.find("hot_swap"); h && h->find("swaps")->as_number() > 0)
-    std::printf("  hot swap: %llu swaps, RT cost per exchange p50 %.0f ns, max %.0f ns; overruns in a swap cycle "
-                "(or the next) %llu\n",
-                static_cast<unsigned long long>(h->find("swaps")->as_number()),
-                h->find("rt_cost_p50_ns") ? h->find("rt_cost_p50_ns")->as_number() : 0.0,
-                h->find("rt_cost_max_ns") ? h->find("rt_cost_max_ns")->as_number() : 0.0,
-                static_cast<unsigned long long>(h->find("overruns_at_swap_cycles")->as_number()));
+    std::fprintf(out, "  hot swap: %llu swaps, RT cost per exchange p50 %.0f ns, max %.0f ns; overruns in a swap cycle "
+                 "(or the next) %llu\n",
+                 static_cast<unsigned long long>(h->find("swaps")->as_number()),
+                 h->find("rt_cost_p50_ns") ? h->find("rt_cost_p50_ns")->as_number() : 0.0,
+                 h->find("rt_cost_max_ns") ? h->find("rt_cost_max_ns")->as_number() : 0.0,
+                 static_cast<unsigned long long>(h->find("overruns_at_swap_cycles")->as_number()));
   if (f.analysis.dropped() > 0)
-    std::printf("  WARNING: %llu recorded samples dropped (consumer too slow)\n",
-                static_cast<unsigned long long>(f.analysis.dropped()));
+    say(stdout, Severity::warning, "  WARNING: %llu recorded samples dropped (consumer too slow)\n",
+        static_cast<unsigned long long>(f.analysis.dropped()));
   if (const auto* recs = summary.find("recordings")) {
     for (const auto& r : recs->elements()) {
       const auto* error = r.find("error");
-      std::printf("  recording: %s: %llu cycles%s%s\n", r.find("file")->as_string().c_str(),
-                  static_cast<unsigned long long>(r.find("cycles")->as_number()),
-                  error ? (", " + std::to_string(static_cast<unsigned long long>(r.find("lost")->as_number())) +
-                           " lost; FAILED: " + error->as_string()).c_str()
-                        : "",
-                  !error && r.find("dropped")->as_number() > 0 ? ", some dropped (see the summary)" : "");
+      std::fprintf(out, "  recording: %s: %llu cycles%s%s\n", r.find("file")->as_string().c_str(),
+                   static_cast<unsigned long long>(r.find("cycles")->as_number()),
+                   error ? (", " + std::to_string(static_cast<unsigned long long>(r.find("lost")->as_number())) +
+                            " lost; FAILED: " + error->as_string()).c_str()
+                         : "",
+                   !error && r.find("dropped")->as_number() > 0 ? ", some dropped (see the summary)" : "");
     }
   }
-  if (f.result.faulted) std::printf("  FAULT: %s (outputs driven safe)\n", f.result.fault.c_str());
+  // The outcome, and that the outputs are at their safe values: pipeline.deactivate() has
+  // driven them before this summary, whatever ended the run.
+  const auto cycles = static_cast<unsigned long long>(st.cycles.load());
+  if (f.result.faulted)
+    say(stdout, Severity::error, "  FAULT: %s (outputs driven safe)\n", f.result.fault.c_str());
+  else if (f.result.stopped_by_request)
+    say(stdout, Severity::notice, "  stopped by signal at cycle %llu (outputs driven safe)\n", cycles);
+  else
+    say(stdout, Severity::notice, "  completed %llu cycles (outputs driven safe)\n", cycles);
 }
 
 }  // namespace lode::cli

@@ -1,5 +1,6 @@
 // The end of `lode run`: the summary as JSON (what --summary-json writes) and its
-// human-readable lines (timing, step cost per block, telemetry, hot swap, recordings, fault).
+// human-readable lines (timing, step cost per block, telemetry, hot swap, recordings, and the
+// outcome: fault, stopped or completed, the outputs driven safe in each case).
 #pragma once
 
 #include <string>

@@ -1,5 +1,7 @@
 #include "run_services.hpp"
 
+#include <pthread.h>
+#include <sched.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -241,9 +243,11 @@ const std::vector<std::string>& RunServices::io_blocks() const { return impl_->r
 
 Expected<RunResult> execute_run(Pipeline& pipeline, Scheduler& scheduler, EventLog& events, RunServices& services,
                                 std::uint64_t cycles, const std::string& start_text,
-                                const std::function<void()>& on_idle, const std::function<void()>& after_run) {
+                                const std::function<void()>& on_idle, const std::function<void()>& after_run,
+                                const std::function<void()>& on_active) {
   if (auto st = pipeline.activate(); !st) return st;
   events.post(0, 0, "start", start_text);
+  if (on_active) on_active();
   services.set_running(true);
   auto result = scheduler.run(cycles, stop_requested(), on_idle);
   services.set_running(false);
@@ -255,6 +259,22 @@ Expected<RunResult> execute_run(Pipeline& pipeline, Scheduler& scheduler, EventL
                              : result.stopped_by_request ? "stopped by signal" : "completed");
   services.finish();  // publishes the stop event and the last samples, closes the recording
   return result;
+}
+
+std::string keep_threads_off_cpu(int rt_cpu) {
+  if (rt_cpu < 0 || rt_cpu >= CPU_SETSIZE) return "";
+  cpu_set_t allowed;
+  CPU_ZERO(&allowed);
+  if (const int rc = pthread_getaffinity_np(pthread_self(), sizeof allowed, &allowed); rc != 0)
+    return std::string("cannot read the CPU affinity (") + std::strerror(rc) + "); lode's other threads may share cpu " +
+           std::to_string(rt_cpu) + " with the RT thread";
+  if (!CPU_ISSET(rt_cpu, &allowed)) return "";  // already elsewhere (isolcpus, CPUAffinity=)
+  CPU_CLR(rt_cpu, &allowed);
+  if (CPU_COUNT(&allowed) == 0) return "";  // the RT CPU is the only one allowed: nowhere to go
+  if (const int rc = pthread_setaffinity_np(pthread_self(), sizeof allowed, &allowed); rc != 0)
+    return std::string("cannot keep lode's other threads off cpu ") + std::to_string(rt_cpu) + " (" + std::strerror(rc) +
+           "); they may share it with the RT thread";
+  return "";
 }
 
 Json RunServices::summary() const {

@@ -69,12 +69,20 @@ class RunServices {
 };
 
 /// The run itself, shared by `lode run` and `lode replay`: activate, the "start" event
-/// (`start_text`), set_running, the cycles, deactivate (every output driven safe),
-/// `after_run` (final drains, status line), the "stop" event, then services.finish() (the
-/// recording is closed with its digest). An activation failure is returned as an error;
+/// (`start_text`), `on_active`, set_running, the cycles, deactivate (every output driven
+/// safe), `after_run` (final drains, status line), the "stop" event, then services.finish()
+/// (the recording is closed with its digest). An activation failure is returned as an error;
 /// a fault during the run is in the RunResult.
 Expected<RunResult> execute_run(Pipeline& pipeline, Scheduler& scheduler, EventLog& events, RunServices& services,
                                 std::uint64_t cycles, const std::string& start_text,
-                                const std::function<void()>& on_idle, const std::function<void()>& after_run = {});
+                                const std::function<void()>& on_idle, const std::function<void()>& after_run = {},
+                                const std::function<void()>& on_active = {});
+
+/// Moves the calling thread, and so every thread it starts from now on (the log drain, the
+/// local command server, Fast DDS's), off `rt_cpu`, where the pipeline's RT thread will be
+/// pinned: a burst of telemetry or of commands then competes with the loop for no CPU. The
+/// RT thread pins itself to `rt_cpu` afterwards (its own affinity). Nothing changes when the
+/// process may run on `rt_cpu` alone (no other CPU to go to). Returns a warning, or "".
+std::string keep_threads_off_cpu(int rt_cpu);
 
 }  // namespace lode::cli

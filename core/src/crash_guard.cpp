@@ -2,9 +2,11 @@
 
 #include <signal.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
+#include <cstdio>
 #include <cstdlib>
 
 #include "lode/pipeline.hpp"
@@ -18,6 +20,9 @@ constexpr std::size_t kAlternateStackBytes = 64 * 1024;  // the handler needs li
 
 std::atomic<Pipeline*> g_pipeline{nullptr};
 std::atomic<int> g_handled{0};
+// "<2>" when stderr is the journal's stream (systemd: $JOURNAL_STREAM is its device:inode), so
+// the journal files the line as critical; decided when the guard is armed, not in the handler.
+char g_journal_prefix[4] = "";
 struct sigaction g_previous[sizeof kFatalSignals / sizeof kFatalSignals[0]];
 bool g_installed = false;
 
@@ -38,16 +43,49 @@ const char* signal_name(int sig) noexcept {
   }
 }
 
-extern "C" void on_fatal_signal(int sig, siginfo_t* /*info*/, void* /*context*/) {
+// The decimal digits of `value` into `out` (at least 21 bytes); async-signal-safe.
+const char* decimal(long value, char* out) noexcept {
+  char digits[21];
+  int n = 0;
+  unsigned long v = value < 0 ? 0UL - static_cast<unsigned long>(value) : static_cast<unsigned long>(value);
+  do {
+    digits[n++] = static_cast<char>('0' + v % 10);
+    v /= 10;
+  } while (v != 0 && n < 20);
+  int i = 0;
+  if (value < 0) out[i++] = '-';
+  while (n > 0) out[i++] = digits[--n];
+  out[i] = '\0';
+  return out;
+}
+
+bool stderr_is_journal() {
+  const char* env = getenv("JOURNAL_STREAM");
+  unsigned long long device = 0, inode = 0;
+  struct stat st{};
+  return env != nullptr && sscanf(env, "%llu:%llu", &device, &inode) == 2 && fstat(STDERR_FILENO, &st) == 0 &&
+         static_cast<unsigned long long>(st.st_dev) == device && static_cast<unsigned long long>(st.st_ino) == inode;
+}
+
+extern "C" void on_fatal_signal(int sig, siginfo_t* info, void* /*context*/) {
   // Only the first fatal signal drives the outputs: a second fault inside drive_safe() (or on
   // another thread meanwhile) must not loop. SA_RESETHAND has already restored the default
   // action, so returning (SIGSEGV re-faults) or the raise() below ends the process.
   if (g_handled.fetch_add(1) == 0) {
     if (Pipeline* p = g_pipeline.load()) {
       p->drive_safe();
+      write_stderr(g_journal_prefix);
       write_stderr("lode: ");
       write_stderr(signal_name(sig));
-      write_stderr(": the process is dying of a bug; outputs driven to their safe values\n");
+      if (info != nullptr && info->si_code == SI_USER && info->si_pid != getpid()) {
+        // kill(2) from outside, e.g. systemd's WatchdogSignal: not a bug in this process.
+        char pid[24];
+        write_stderr(": sent by process ");
+        write_stderr(decimal(info->si_pid, pid));
+        write_stderr(" (a service manager's watchdog, or kill); outputs driven to their safe values\n");
+      } else {
+        write_stderr(": the process is dying of a bug; outputs driven to their safe values\n");
+      }
     }
   }
   raise(sig);  // blocked until the handler returns, then the default action
@@ -72,6 +110,7 @@ CrashGuard::CrashGuard(Pipeline& pipeline) {
     }
     g_installed = true;
   }
+  if (stderr_is_journal()) memcpy(g_journal_prefix, "<2>", 4);
   g_pipeline.store(&pipeline);
 }
 
