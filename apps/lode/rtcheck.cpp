@@ -67,7 +67,13 @@ int rtcheck(const Args& args) {
     plan.priority = target.priority;
     plan.period_ns = target.period_ns;
     plan.duration_ns = *duration_ns;
-    plan.pipeline = loaded ? loaded->pipeline.get() : nullptr;
+    // Timing the cycle runs it as `lode bench` does, activating its io blocks: a pipeline on
+    // the real clock drives hardware (a stage that may be live, a board lode@ holds), so its
+    // cycle is not run here.
+    if (loaded && loaded->pipeline->realtime().real_clock)
+      plan.cycle_cost_skipped = "it drives hardware (realtime.clock: real); running its cycle would drive the hardware";
+    else if (loaded)
+      plan.pipeline = loaded->pipeline.get();
     if (!args.has_flag("--json"))
       std::fprintf(stderr, "lode rtcheck: measuring wake-up latency for %.1f s...\n", static_cast<double>(*duration_ns) / 1e9);
     latency = measure_latency(plan);

@@ -28,20 +28,30 @@ std::int64_t now_ns() {
 double us(std::int64_t ns) { return static_cast<double>(ns) / 1000.0; }
 
 /// The loop cyclictest runs: sleep to an absolute deadline, read the clock, record how late.
-/// Nothing in it allocates or locks; the histogram is fixed storage.
-void wakeup_loop(const LatencyPlan& plan, Histogram& wakeups, bool& interrupted) {
+/// A wake-up later than the next deadline skips the deadlines already passed, as cyclictest
+/// and `lode run` (overrun_policy: skip) do: they are counted, not recorded as a burst of
+/// late catch-up wake-ups. Nothing here allocates or locks; the histogram is fixed storage.
+void wakeup_loop(const LatencyPlan& plan, LatencyReport& report) {
   std::int64_t next = now_ns() + plan.period_ns;
   const std::int64_t end = next + plan.duration_ns;
   while (next < end) {
     if (stop_requested().load(std::memory_order_relaxed)) {
-      interrupted = true;
+      report.interrupted = true;
       return;
     }
     timespec ts{static_cast<time_t>(next / 1'000'000'000), static_cast<long>(next % 1'000'000'000)};
     while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
     }
-    wakeups.record(now_ns() - next);
+    const std::int64_t woke = now_ns();
+    report.wakeups->record(woke - next);
     next += plan.period_ns;
+    if (woke > next) {
+      const std::int64_t missed = (woke - next) / plan.period_ns + 1;
+      // Only the deadlines inside the measured window count (count + missed = window / period).
+      const std::int64_t in_window = next < end ? std::min(missed, (end - next + plan.period_ns - 1) / plan.period_ns) : 0;
+      next += missed * plan.period_ns;
+      report.missed_periods += static_cast<std::uint64_t>(in_window);
+    }
   }
 }
 
@@ -117,7 +127,7 @@ LatencyReport measure_latency(const LatencyPlan& plan) {
                     CPU_COUNT(&set) == 1 && CPU_ISSET(plan.cpu, &set);
     // The cycle's cost on the same CPU and priority the loop will have.
     if (plan.pipeline) report.cycle_cost_error = run_cycles_timed(*plan.pipeline, plan.cost_cycles, *report.cycle_cost);
-    wakeup_loop(plan, *report.wakeups, report.interrupted);
+    wakeup_loop(plan, report);
   });
   measuring.join();
   release_process_realtime();
@@ -160,6 +170,11 @@ std::vector<CheckResult> latency_checks(const LatencyReport& r) {
     head.status = CheckStatus::warn;
     head.fix = "less than 10 % of the period is left: make the host quieter (the WARN findings above), or lower rate_hz";
   }
+  if (!r.plan.cycle_cost_skipped.empty()) {
+    head.status = std::max(head.status, CheckStatus::warn);
+    head.found += "; the pipeline's cycle was not timed: " + r.plan.cycle_cost_skipped;
+    if (head.fix.empty()) head.fix = "run `lode bench` on the pipeline's simulation twin and subtract its p99 from the headroom";
+  }
   if (!r.cycle_cost_error.empty()) {
     head.status = std::max(head.status, CheckStatus::warn);
     head.found += "; the pipeline's cycle could not be timed: " + r.cycle_cost_error;
@@ -180,6 +195,7 @@ Json latency_json(const LatencyReport& r) {
   j["duration_s"] = static_cast<double>(r.plan.duration_ns) / 1e9;
   j["interrupted"] = r.interrupted;
   j["count"] = h.count();
+  j["missed_periods"] = r.missed_periods;
   j["min_us"] = us(h.count() ? h.min() : 0);
   j["p50_us"] = us(h.percentile(0.5));
   j["p90_us"] = us(h.percentile(0.9));
@@ -210,10 +226,10 @@ std::string latency_text(const LatencyReport& r) {
   std::string out;
   char buf[512];
   std::snprintf(buf, sizeof buf,
-                "wake-up latency: %llu wake-ups every %.1f us%s, %s, %s\n"
+                "wake-up latency: %llu wake-ups every %.1f us (%llu periods missed)%s, %s, %s\n"
                 "  min %.1f  p50 %.1f  p90 %.1f  p99 %.1f  p99.9 %.1f  max %.1f   (us)\n",
                 static_cast<unsigned long long>(h.count()), us(r.plan.period_ns),
-                r.interrupted ? " (interrupted)" : "",
+                static_cast<unsigned long long>(r.missed_periods), r.interrupted ? " (interrupted)" : "",
                 r.sched_fifo ? ("SCHED_FIFO " + std::to_string(r.plan.priority)).c_str() : "normal scheduling",
                 r.pinned ? ("CPU " + std::to_string(r.plan.cpu)).c_str() : "any CPU", us(h.count() ? h.min() : 0),
                 us(h.percentile(0.5)), us(h.percentile(0.9)), us(h.percentile(0.99)), us(h.percentile(0.999)),
@@ -242,7 +258,9 @@ std::string latency_text(const LatencyReport& r) {
                   static_cast<unsigned long long>(r.cycle_cost->count()), us(r.cycle_cost->percentile(0.99)));
   else
     std::snprintf(buf, sizeof buf, "cycle cost: not measured (%s)\n",
-                  r.plan.pipeline ? r.cycle_cost_error.c_str() : "no pipeline");
+                  !r.plan.cycle_cost_skipped.empty() ? r.plan.cycle_cost_skipped.c_str()
+                  : r.plan.pipeline                  ? r.cycle_cost_error.c_str()
+                                                     : "no pipeline");
   out += buf;
   std::snprintf(buf, sizeof buf, "headroom: period %.1f - (worst wake-up %.1f + cycle p99) = %.1f us\n",
                 us(r.plan.period_ns), us(h.max()), us(r.headroom_ns()));

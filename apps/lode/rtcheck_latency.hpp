@@ -26,6 +26,8 @@ struct LatencyPlan {
   std::int64_t duration_ns = 10'000'000'000;
   /// When set, its cycle is run back to back first (as `lode bench` does) for its cost.
   Pipeline* pipeline = nullptr;
+  /// Why the cycle is not timed although there is a pipeline ("" = it is, when `pipeline` is set).
+  std::string cycle_cost_skipped;
   std::uint64_t cost_cycles = 5000;
 };
 
@@ -37,6 +39,7 @@ struct LatencyReport {
   bool sched_fifo = false;                ///< the thread ran SCHED_FIFO at plan.priority
   bool pinned = false;                    ///< the thread ran on plan.cpu only
   bool interrupted = false;               ///< stopped early by SIGINT/SIGTERM
+  std::uint64_t missed_periods = 0;       ///< deadlines skipped because a wake-up came after them
   std::vector<std::string> setup_warnings;  ///< mlockall, SCHED_FIFO or affinity refused
   [[nodiscard]] std::int64_t headroom_ns() const;
 };

@@ -368,4 +368,16 @@ TEST(RtcheckLatency, HeadroomAndSetupFindings) {
   EXPECT_LT(r.headroom_ns(), 0);
 }
 
+TEST(RtcheckLatency, AHardwarePipelineIsNotRunAndTheHeadroomSaysSo) {
+  LatencyReport r;
+  r.plan.period_ns = 1'000'000;
+  r.plan.priority = 0;
+  for (int i = 0; i < 100; ++i) r.wakeups->record(10'000);
+  r.plan.cycle_cost_skipped = "it drives hardware (realtime.clock: real)";
+  const auto checks = latency_checks(r);
+  EXPECT_TRUE(is(checks[1], CheckStatus::warn, "lode bench"));
+  EXPECT_NE(checks[1].found.find("drives hardware"), std::string::npos) << checks[1].found;
+  EXPECT_NE(latency_text(r).find("cycle cost: not measured (it drives hardware"), std::string::npos) << latency_text(r);
+}
+
 }  // namespace
