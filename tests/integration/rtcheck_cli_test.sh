@@ -107,6 +107,43 @@ for e in errors:
     print("   ", e)
 sys.exit(1 if errors else 0)
 PY
+# A stall (the process stopped for 0.3 s) is one late wake-up and the deadlines it passed are
+# skipped and counted, as cyclictest and `lode run` (overrun_policy: skip) treat them; not a
+# burst of catch-up wake-ups that would inflate the percentiles.
+"$LODE" rtcheck --json --latency 2s > "$TMP/stall.json" 2>&1 &
+stalled=$!
+PIDS+=($stalled)
+sleep 0.7
+kill -STOP $stalled
+sleep 0.3
+kill -CONT $stalled
+wait $stalled
+if $PY -c '
+import json, sys
+l = json.load(open(sys.argv[1]))["latency"]
+assert l["count"] + l["missed_periods"] == 2000, l
+assert l["missed_periods"] >= 100 and l["max_us"] >= 100000, l
+late = sum(b["count"] for b in l["histogram"] if b["up_to_us"] is None or b["up_to_us"] > 1000)
+assert late < 20, f"{late} wake-ups later than 1 ms: the stall was recorded as catch-up wake-ups"' "$TMP/stall.json"; then
+  ok "a 0.3 s stall: one late wake-up, the passed deadlines counted as missed periods"
+else
+  bad "a 0.3 s stall: $(head -c 800 "$TMP/stall.json")"
+fi
+
+# A pipeline on the real clock drives hardware: its cycle is not run to time it, and the
+# headroom says so (here the VME board is absent: activating it would also fail).
+"$LODE" rtcheck "$REPO/config/kawato_planar_vme.yaml" --json --latency 100ms > "$TMP/hardware.json" 2>&1
+if $PY -c '
+import json, sys
+d = json.load(open(sys.argv[1]))
+head = [c for c in d["checks"] if c["name"] == "headroom"][0]
+assert d["latency"]["cycle_cost_p99_us"] is None, d["latency"]
+assert head["status"] != "PASS" and "drives hardware" in head["found"], head' "$TMP/hardware.json"; then
+  ok "a real-clock (hardware) pipeline's cycle is not run; the headroom says why"
+else
+  bad "a real-clock pipeline: $(head -c 600 "$TMP/hardware.json")"
+fi
+
 "$LODE" rtcheck --latency 500ms > "$TMP/latency.txt" 2>&1
 rc=$?
 [ $rc -le 1 ] && ok "--latency 500ms (no CONFIG) exits $rc" || bad "--latency 500ms exited $rc"
