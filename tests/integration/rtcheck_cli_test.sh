@@ -113,7 +113,9 @@ PY
 "$LODE" rtcheck --json --latency 2s > "$TMP/stall.json" 2>&1 &
 stalled=$!
 PIDS+=($stalled)
-sleep 0.7
+# Stop it once the measuring thread runs (a loaded host may be slow to start the process).
+for _ in $(seq 100); do [ "$(ls /proc/$stalled/task 2>/dev/null | wc -l)" -ge 2 ] && break; sleep 0.1; done
+sleep 0.2
 kill -STOP $stalled
 sleep 0.3
 kill -CONT $stalled
