@@ -3,9 +3,8 @@
 #include <cstdio>
 
 #include "commands.hpp"
+#include "cycle_cost.hpp"
 #include "load_config.hpp"
-#include "lode/scheduler.hpp"
-#include "lode/sdk/histogram.hpp"
 
 namespace lode::cli {
 namespace {
@@ -17,27 +16,11 @@ int bench(const Args& args) {
   if (!loaded) return kExitConfig;
   auto& p = loaded->pipeline;
   const auto cycles = static_cast<std::uint64_t>(args.integer("--cycles", kDefaultCycles));
-  if (auto st = p->activate(); !st) {
-    std::fprintf(stderr, "lode: %s\n", st.message().c_str());
+  Histogram whole;
+  if (const auto error = run_cycles_timed(*p, cycles, whole); !error.empty()) {
+    std::fprintf(stderr, "lode: %s\n", error.c_str());
     return kExitFault;
   }
-  Histogram whole;
-  Tick tick;
-  tick.dt_s = 1.0 / p->rate_hz();
-  RealClock clock;
-  for (std::uint64_t k = 0; k < cycles; ++k) {
-    tick.cycle = k;
-    tick.time_ns = static_cast<std::int64_t>(k) * p->period_ns();
-    const auto t0 = clock.now_ns();
-    const auto r = p->run_cycle(tick, true);
-    whole.record(clock.now_ns() - t0);
-    if (r.status != StepStatus::ok) {
-      std::fprintf(stderr, "lode: fault at cycle %llu in %s\n", static_cast<unsigned long long>(k),
-                   p->ops()[static_cast<std::size_t>(r.failed_op)].label.c_str());
-      return kExitFault;
-    }
-  }
-  p->deactivate();
   std::printf("%-22s %10s %10s %10s %10s\n", "operation", "p50 ns", "p99 ns", "mean ns", "max ns");
   for (const auto& op : p->ops())
     std::printf("%-22s %10lld %10lld %10.0f %10lld\n", op.label.c_str(),

@@ -5,29 +5,16 @@
 #include <sched.h>
 #include <sys/mman.h>
 #include <sys/resource.h>
-#include <sys/utsname.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstring>
-#include <fstream>
-#include <sstream>
 #include <thread>
 
 namespace lode {
 
 namespace {
 int g_dma_latency_fd = -1;
-
-std::string read_file(const char* path) {
-  std::ifstream in(path);
-  if (!in) return {};
-  std::stringstream ss;
-  ss << in.rdbuf();
-  auto s = ss.str();
-  while (!s.empty() && (s.back() == '\n' || s.back() == ' ')) s.pop_back();
-  return s;
-}
 
 /// Touch a block of stack so its pages are mapped (and locked) before the loop starts.
 void prefault_stack() {
@@ -94,58 +81,6 @@ std::vector<std::string> apply_thread_realtime(const RealtimeSettings& s) {
   }
   if (s.lock_memory) prefault_stack();
   return warnings;
-}
-
-Json realtime_host_report() {
-  Json r = Json::object();
-  utsname u{};
-  uname(&u);
-  const std::string version = u.version;
-  const std::string rt_flag = read_file("/sys/kernel/realtime");
-  const bool preempt_rt = rt_flag == "1" || version.find("PREEMPT_RT") != std::string::npos;
-  Json k = Json::object();
-  k["release"] = u.release;
-  k["version"] = version;
-  k["preempt_rt"] = preempt_rt;
-  k["advice"] = preempt_rt ? "ok"
-                           : "not a PREEMPT_RT kernel: expect millisecond latency spikes; install "
-                             "linux-image-rt-amd64 (Debian) and boot it for production stages";
-  r["kernel"] = std::move(k);
-
-  rlimit rl{};
-  getrlimit(RLIMIT_RTPRIO, &rl);
-  const bool root = geteuid() == 0;
-  Json p = Json::object();
-  p["root"] = root;
-  p["rlimit_rtprio"] = static_cast<std::int64_t>(rl.rlim_cur);
-  getrlimit(RLIMIT_MEMLOCK, &rl);
-  p["rlimit_memlock_bytes"] = rl.rlim_cur == RLIM_INFINITY ? Json("unlimited")
-                                                           : Json(static_cast<std::int64_t>(rl.rlim_cur));
-  // Try SCHED_FIFO on a short-lived thread: the honest answer to "will it work?".
-  bool fifo_ok = false;
-  std::thread probe([&] {
-    sched_param sp{};
-    sp.sched_priority = 1;
-    fifo_ok = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp) == 0;
-  });
-  probe.join();
-  p["sched_fifo_allowed"] = fifo_ok;
-  p["advice"] = fifo_ok ? "ok"
-                        : "SCHED_FIFO refused: run as root, or add `@realtime - rtprio 99` and "
-                          "`@realtime - memlock unlimited` to /etc/security/limits.conf";
-  r["privileges"] = std::move(p);
-
-  Json c = Json::object();
-  c["online"] = static_cast<int>(std::thread::hardware_concurrency());
-  c["isolated"] = read_file("/sys/devices/system/cpu/isolated");
-  c["rt_runtime_us"] = read_file("/proc/sys/kernel/sched_rt_runtime_us");
-  c["clocksource"] = read_file("/sys/devices/system/clocksource/clocksource0/current_clocksource");
-  c["advice"] = c.find("isolated")->as_string().empty()
-                    ? "no isolated CPU: consider isolcpus=/nohz_full= on the kernel command line "
-                      "and `realtime: {cpu: N}` in the pipeline"
-                    : "ok";
-  r["cpus"] = std::move(c);
-  return r;
 }
 
 }  // namespace lode

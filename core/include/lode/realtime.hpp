@@ -8,7 +8,6 @@
 #include <string>
 #include <vector>
 
-#include "lode/sdk/json.hpp"
 #include "lode/pipeline.hpp"
 
 namespace lode {
@@ -22,8 +21,5 @@ std::vector<std::string> apply_thread_realtime(const RealtimeSettings& settings)
 
 /// Undo the process-wide part (close the DMA latency request).
 void release_process_realtime();
-
-/// What `lode rtcheck` prints: kernel preemption model, limits, privileges, each with advice.
-Json realtime_host_report();
 
 }  // namespace lode
