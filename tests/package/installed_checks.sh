@@ -21,7 +21,9 @@ runtime)
   echo "$version" | sed 's/^/    /'
   echo "$version" | grep -q "/usr/bin/../lib/lodestone/plugins" \
     || fail "lode --version does not search the installed plugin folder"
-  ok "lode --version"
+  lode plugins estimator.glsdc --json | grep -q '"file": "/usr/bin/../lib/lodestone/plugins/' \
+    || fail "lode does not load its plugins from /usr/lib/lodestone/plugins"
+  ok "lode --version; the shipped plugins load from /usr/bin/../lib/lodestone/plugins"
   getent group realtime >/dev/null || fail "no group realtime"
   id -nG lode | tr ' ' '\n' | grep -qx realtime || fail "no user lode in group realtime"
   [ "$(getent passwd lode | cut -d: -f7)" = /usr/sbin/nologin ] || fail "user lode has a login shell"
@@ -63,7 +65,15 @@ sdk)
   [ -f /usr/lib/lodestone/plugins/lode-filter.external_gain.so ] \
     || fail "the plugin was not installed into /usr/lib/lodestone/plugins: $(cat "$WORK/install.log")"
   lode plugins | grep -q "filter.external_gain" || fail "lode plugins does not list filter.external_gain"
+  lode plugins filter.external_gain --json \
+    | grep -q '"file": "/usr/bin/../lib/lodestone/plugins/lode-filter.external_gain.so"' \
+    || fail "lode loads filter.external_gain from elsewhere: $(lode plugins filter.external_gain --json | grep '"file"')"
   ok "lode plugins lists filter.external_gain from /usr/lib/lodestone/plugins"
+  # LODE_PLUGIN_PATH comes first: the build folder's copy wins over the installed one.
+  LODE_PLUGIN_PATH=$WORK/build lode plugins filter.external_gain --json \
+    | grep -q "\"file\": \"$WORK/build/lode-filter.external_gain.so\"" \
+    || fail "LODE_PLUGIN_PATH does not override the installed plugin"
+  ok "LODE_PLUGIN_PATH overrides the installed plugin"
   (cd / && lode run "$SRC/pipeline.yaml" --duration 0.05 --no-telemetry --quiet \
      --summary-json "$WORK/summary.json" >"$WORK/run.log" 2>&1) \
     || { cat "$WORK/run.log"; fail "lode run with the external plugin"; }

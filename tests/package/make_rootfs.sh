@@ -88,7 +88,15 @@ mkdir -p "$CACHE/archives/partial" "$CACHE/lists/partial"
 CACHE=$(realpath "$CACHE")
 include_args=()
 [ ${#includes[@]} -gt 0 ] && include_args+=(--include="$(IFS=,; echo "${includes[*]}")")
-for d in "${debs[@]}"; do include_args+=(--include="$d"); done  # own option: a path may hold commas
+# The local packages are installed by apt inside the finished chroot rather than by
+# --include: mmdebstrap's outer apt hands dpkg (inside) paths it cannot see.
+deb_hooks=()
+if [ ${#debs[@]} -gt 0 ]; then
+  deb_hooks+=(--customize-hook='mkdir -p "$1/tmp/make_rootfs-debs"')
+  deb_hooks+=(--customize-hook="copy-in ${debs[*]} /tmp/make_rootfs-debs")
+  deb_hooks+=(--customize-hook='chroot "$1" sh -c "DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends /tmp/make_rootfs-debs/*.deb"')
+  deb_hooks+=(--customize-hook='rm -rf "$1/tmp/make_rootfs-debs"')
+fi
 
 # --skip=essential/unlink keeps the Essential packages' files in the archive cache;
 # the lists are kept too, so a second run's apt update fetches only what changed.
@@ -97,7 +105,7 @@ mmdebstrap --mode=root --variant="$variant" --skip=essential/unlink \
   --setup-hook='mkdir -p "$1"/var/cache/apt/archives "$1"/var/lib/apt/lists' \
   --setup-hook="sync-in $CACHE/archives /var/cache/apt/archives/" \
   --setup-hook="sync-in $CACHE/lists /var/lib/apt/lists/" \
-  "${extra[@]}" \
+  "${deb_hooks[@]}" "${extra[@]}" \
   --customize-hook="sync-out /var/cache/apt/archives $CACHE/archives" \
   --customize-hook="sync-out /var/lib/apt/lists $CACHE/lists" \
   "$suite" "$OUT" "${mirrors[@]}"
