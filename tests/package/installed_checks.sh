@@ -8,6 +8,9 @@
 set -euo pipefail
 fail() { echo "FAIL: $*" >&2; exit 1; }
 ok() { echo "ok: $*"; }
+# grep that reads all its input: with pipefail, `lode ... | grep -q` fails when grep exits
+# first and lode dies of SIGPIPE.
+has() { grep "$@" >/dev/null; }
 WORK=$(mktemp -d /tmp/lode-check.XXXXXX)
 chmod 755 "$WORK"
 # A private runtime directory: the local command sockets of these runs meet nothing else.
@@ -19,13 +22,13 @@ case "${1:-}" in
 runtime)
   version=$(lode --version) || fail "lode --version"
   echo "$version" | sed 's/^/    /'
-  echo "$version" | grep -q "/usr/bin/../lib/lodestone/plugins" \
+  echo "$version" | has "/usr/bin/../lib/lodestone/plugins" \
     || fail "lode --version does not search the installed plugin folder"
-  lode plugins estimator.glsdc --json | grep -q '"file": "/usr/bin/../lib/lodestone/plugins/' \
+  lode plugins estimator.glsdc --json | has '"file": "/usr/bin/../lib/lodestone/plugins/' \
     || fail "lode does not load its plugins from /usr/lib/lodestone/plugins"
   ok "lode --version; the shipped plugins load from /usr/bin/../lib/lodestone/plugins"
   getent group realtime >/dev/null || fail "no group realtime"
-  id -nG lode | tr ' ' '\n' | grep -qx realtime || fail "no user lode in group realtime"
+  id -nG lode | tr ' ' '\n' | has -x realtime || fail "no user lode in group realtime"
   [ "$(getent passwd lode | cut -d: -f7)" = /usr/sbin/nologin ] || fail "user lode has a login shell"
   ok "group realtime and user lode (no login shell) exist"
   for f in /lib/systemd/system/lode@.service /lib/udev/rules.d/60-lodestone.rules \
@@ -34,7 +37,7 @@ runtime)
     [ -e "$f" ] || fail "$f is not installed"
   done
   [ -d /etc/lodestone ] || fail "/etc/lodestone is not installed"
-  dpkg-query --control-show lodestone conffiles | grep -q /etc/security/limits.d/lodestone.conf \
+  dpkg-query --control-show lodestone conffiles | has /etc/security/limits.d/lodestone.conf \
     || fail "the limits file is not a conffile"
   ok "unit, udev rule, limits (a conffile), /etc/lodestone, man page, completion, copyright"
   # A shipped pipeline from another folder, as the service user would run it: the example
@@ -64,14 +67,14 @@ sdk)
   cmake --install "$WORK/build" >"$WORK/install.log" 2>&1 || { cat "$WORK/install.log"; fail "install the plugin"; }
   [ -f /usr/lib/lodestone/plugins/lode-filter.external_gain.so ] \
     || fail "the plugin was not installed into /usr/lib/lodestone/plugins: $(cat "$WORK/install.log")"
-  lode plugins | grep -q "filter.external_gain" || fail "lode plugins does not list filter.external_gain"
+  lode plugins | has "filter.external_gain" || fail "lode plugins does not list filter.external_gain"
   lode plugins filter.external_gain --json \
-    | grep -q '"file": "/usr/bin/../lib/lodestone/plugins/lode-filter.external_gain.so"' \
+    | has '"file": "/usr/bin/../lib/lodestone/plugins/lode-filter.external_gain.so"' \
     || fail "lode loads filter.external_gain from elsewhere: $(lode plugins filter.external_gain --json | grep '"file"')"
   ok "lode plugins lists filter.external_gain from /usr/lib/lodestone/plugins"
   # LODE_PLUGIN_PATH comes first: the build folder's copy wins over the installed one.
   LODE_PLUGIN_PATH=$WORK/build lode plugins filter.external_gain --json \
-    | grep -q "\"file\": \"$WORK/build/lode-filter.external_gain.so\"" \
+    | has "\"file\": \"$WORK/build/lode-filter.external_gain.so\"" \
     || fail "LODE_PLUGIN_PATH does not override the installed plugin"
   ok "LODE_PLUGIN_PATH overrides the installed plugin"
   (cd / && lode run "$SRC/pipeline.yaml" --duration 0.05 --no-telemetry --quiet \

@@ -98,14 +98,17 @@ if [ ${#debs[@]} -gt 0 ]; then
   deb_hooks+=(--customize-hook='rm -rf "$1/tmp/make_rootfs-debs"')
 fi
 
-# --skip=essential/unlink keeps the Essential packages' files in the archive cache;
+# --skip=essential/unlink keeps the Essential packages' files in the archive cache, which is
+# copied out before the caller's hooks (kept if one fails) and again after them;
 # the lists are kept too, so a second run's apt update fetches only what changed.
 mmdebstrap --mode=root --variant="$variant" --skip=essential/unlink \
   "${aptopts[@]}" "${include_args[@]}" \
   --setup-hook='mkdir -p "$1"/var/cache/apt/archives "$1"/var/lib/apt/lists' \
   --setup-hook="sync-in $CACHE/archives /var/cache/apt/archives/" \
   --setup-hook="sync-in $CACHE/lists /var/lib/apt/lists/" \
-  "${deb_hooks[@]}" "${extra[@]}" \
+  "${deb_hooks[@]}" \
+  --customize-hook="sync-out /var/cache/apt/archives $CACHE/archives" \
+  "${extra[@]}" \
   --customize-hook="sync-out /var/cache/apt/archives $CACHE/archives" \
   --customize-hook="sync-out /var/lib/apt/lists $CACHE/lists" \
   "$suite" "$OUT" "${mirrors[@]}"
