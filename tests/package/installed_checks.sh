@@ -31,6 +31,11 @@ runtime)
   id -nG lode | tr ' ' '\n' | has -x realtime || fail "no user lode in group realtime"
   [ "$(getent passwd lode | cut -d: -f7)" = /usr/sbin/nologin ] || fail "user lode has a login shell"
   ok "group realtime and user lode (no login shell) exist"
+  # Configured again (a reinstall or an upgrade), the scripts change nothing and do not fail.
+  /var/lib/dpkg/info/lodestone.postinst configure 0.1.0-1 || fail "postinst configure, run a second time"
+  [ "$(getent passwd | grep -c '^lode:')" = 1 ] && [ "$(getent group | grep -c '^realtime:')" = 1 ] \
+    || fail "a second postinst run duplicated the user or the group"
+  ok "postinst is idempotent"
   for f in /lib/systemd/system/lode@.service /lib/udev/rules.d/60-lodestone.rules \
            /etc/security/limits.d/lodestone.conf /usr/share/man/man1/lode-run.1.gz \
            /usr/share/bash-completion/completions/lode /usr/share/doc/lodestone/copyright; do
