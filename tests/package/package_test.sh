@@ -58,11 +58,14 @@ else bad "lodestone's Installed-Size ${installed_kb} KiB exceeds ${MAX_INSTALLED
 
 for deb in "$runtime_deb" "$dev_deb"; do
   name=$(basename "$deb")
-  dpkg-deb -x "$deb" "$TMP/unpacked/$name"
+  mkdir -p "$TMP/unpacked/$name"
+  dpkg-deb -x "$deb" "$TMP/unpacked/$name" || { bad "dpkg-deb -x $name"; continue; }
+  files=$(find "$TMP/unpacked/$name" -type f | wc -l)
+  [ "$files" -gt 0 ] || { bad "$name unpacks to no file"; continue; }
   # Compressed files (man pages, changelog) are looked into, too.
   hits=$(cd "$TMP/unpacked/$name" && { grep -rlaF -e "$SRC" -e "$BUILD" . ;
           find . -name '*.gz' -exec sh -c 'zcat "$1" | grep -qaF -e "$2" -e "$3" && echo "$1"' _ {} "$SRC" "$BUILD" \; ; } | sort -u)
-  if [ -z "$hits" ]; then ok "$name: no file holds $SRC or $BUILD"
+  if [ -z "$hits" ]; then ok "$name: none of its $files files holds $SRC or $BUILD"
   else bad "$name: files hold the build machine's paths ($SRC or $BUILD):"; echo "$hits" | sed 's/^/    /'; fi
 done
 [ "$fail" -eq 0 ] || { echo "package_test: FAILED before installing"; exit 1; }
