@@ -56,6 +56,10 @@ echo "lodestone Installed-Size: ${installed_kb} KiB ($((installed_kb / 1024)) Mi
 if [ "$installed_kb" -le "$MAX_INSTALLED_KB" ]; then ok "Installed-Size within bounds"
 else bad "lodestone's Installed-Size ${installed_kb} KiB exceeds ${MAX_INSTALLED_KB} KiB"; fi
 
+# The paths as an extended regex that also matches them inside man pages, where groff
+# writes each '-' as '\-'.
+path_regex() { printf '%s' "$1" | sed 's/[].*^$()+?{}|\\[]/\\&/g; s/-/\\\\?-/g'; }
+paths="$(path_regex "$SRC")|$(path_regex "$BUILD")"
 for deb in "$runtime_deb" "$dev_deb"; do
   name=$(basename "$deb")
   mkdir -p "$TMP/unpacked/$name"
@@ -63,8 +67,8 @@ for deb in "$runtime_deb" "$dev_deb"; do
   files=$(find "$TMP/unpacked/$name" -type f | wc -l)
   [ "$files" -gt 0 ] || { bad "$name unpacks to no file"; continue; }
   # Compressed files (man pages, changelog) are looked into, too.
-  hits=$(cd "$TMP/unpacked/$name" && { grep -rlaF -e "$SRC" -e "$BUILD" . ;
-          find . -name '*.gz' -exec sh -c 'zcat "$1" | grep -qaF -e "$2" -e "$3" && echo "$1"' _ {} "$SRC" "$BUILD" \; ; } | sort -u)
+  hits=$(cd "$TMP/unpacked/$name" && { grep -rlaE -e "$paths" . ;
+          find . -name '*.gz' -exec sh -c 'zcat "$1" | grep -qaE -e "$2" && echo "$1"' _ {} "$paths" \; ; } | sort -u)
   if [ -z "$hits" ]; then ok "$name: none of its $files files holds $SRC or $BUILD"
   else bad "$name: files hold the build machine's paths ($SRC or $BUILD):"; echo "$hits" | sed 's/^/    /'; fi
 done
