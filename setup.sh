@@ -3,12 +3,13 @@
 #
 #   ./setup.sh demo    install, build, run config/kawato_planar.yaml (simulated clock)
 #   ./setup.sh test    install, build, run every test (ctest)
+#   ./setup.sh package install, build, make the Debian packages (cpack), print their paths
 #
 # Run as root on a fresh Debian 12 (or with sudo available). Safe to re-run.
 set -euo pipefail
 cd "$(dirname "$0")"
 mode=${1:-demo}
-case "$mode" in demo|test|build) ;; *) echo "usage: $0 demo|test|build" >&2; exit 2 ;; esac
+case "$mode" in demo|test|build|package) ;; *) echo "usage: $0 demo|test|build|package" >&2; exit 2 ;; esac
 
 PACKAGES=(build-essential g++ cmake make pkg-config
   libeigen3-dev libyaml-cpp-dev libspdlog-dev libfmt-dev
@@ -21,7 +22,9 @@ PACKAGES=(build-essential g++ cmake make pkg-config
   qemu-system-x86 linux-image-amd64 busybox-static kmod cpio can-utils  # QEMU guest with a real vcan0 for the CAN test
   libcpp-httplib-dev                                        # lode scope's HTTP server
   libsystemd-dev                                            # lode run under systemd: sd_notify (READY, watchdog)
-  chromium)                                                 # lode plot --png, and the report test's browser
+  linux-image-rt-amd64                                      # the service test's QEMU guest boots Debian's PREEMPT_RT kernel
+  chromium                                                  # lode plot --png, and the report test's browser
+  mmdebstrap lintian)                                       # the package tests: a clean Debian root file system, lintian on the .debs
 # Node.js and npm install the plot report's chart library (apps/lode/plot/package-lock.json);
 # a machine that already has them (e.g. from another Node.js distribution) keeps its own.
 command -v npm >/dev/null 2>&1 || PACKAGES+=(nodejs npm)
@@ -32,8 +35,8 @@ for p in "${PACKAGES[@]}"; do dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p"); d
 if [ ${#missing[@]} -gt 0 ]; then
   echo "setup: installing ${missing[*]}"
   as_root apt-get update -qq
-  # INITRD=No: the kernel package is only booted by the QEMU CAN test with its own
-  # initramfs, so skip building one for the host (saves minutes on a fresh machine).
+  # INITRD=No: the kernel packages are only booted by the QEMU guest tests, each with an
+  # initramfs of its own, so skip building one for the host (saves minutes on a fresh machine).
   DEBIAN_FRONTEND=noninteractive INITRD=No as_root apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
 
@@ -48,4 +51,8 @@ case "$mode" in
   demo) ./build/apps/lode run config/kawato_planar.yaml ;;
   test) cd build && ctest --output-on-failure -j"$jobs" ;;
   build) ;;
+  package)
+    cmake --build build --target package
+    echo "setup: Debian packages (docs/deployment.md):"
+    ls -1 "$PWD"/build/packages/*.deb "$PWD"/build/packages/*.ddeb ;;
 esac

@@ -5,10 +5,16 @@
 #   lode_<id>_obj   object library with the plugin's code (its tests link it to reach internals)
 #   lode-<NAME>.so  the loadable module; `cmake --install` puts it in
 #                   <prefix>/${LODESTONE_PLUGIN_INSTALL_DIR}, where a `lode` installed in the
-#                   same prefix finds it without LODE_PLUGIN_PATH
+#                   same prefix finds it without LODE_PLUGIN_PATH. The prefix defaults to the
+#                   SDK's own (/usr for the lodestone-dev package, not /usr/local), so a plain
+#                   `cmake --install` puts the plugin beside the packaged ones.
 #   <id>_test       with TESTS: one GoogleTest executable (link GTest::gtest_main; the
 #                   BlockHarness is <lode/sdk/testing/harness.hpp>), registered with ctest and run
 #                   with this plugin and the SDK's plugins on LODE_PLUGIN_PATH
+if(CMAKE_INSTALL_PREFIX_INITIALIZED_TO_DEFAULT AND DEFINED LODESTONE_PREFIX)
+  set(CMAKE_INSTALL_PREFIX "${LODESTONE_PREFIX}" CACHE PATH "Install prefix (the lodestone SDK's)" FORCE)
+endif()
+
 function(lode_add_external_plugin)
   cmake_parse_arguments(P "" "NAME" "SOURCES;TESTS;LIBS" ${ARGN})
   if(NOT P_NAME OR NOT P_SOURCES)

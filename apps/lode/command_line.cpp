@@ -16,7 +16,7 @@ namespace {
 
 constexpr const char* kFooter =
     "exit codes: 0 success, 1 runtime fault, 2 invalid configuration or usage\n"
-    "plugin search path: $LODE_PLUGIN_PATH, <exe>/../lib/lodestone/plugins, install and build folders";
+    "plugin search path: $LODE_PLUGIN_PATH, then the installed and the build tree's plugin folders beside the program (lode --version lists them)";
 
 /// An integer in [min, max], written as digits (no fraction, no exponent).
 CLI::Validator integer_in(long long min, long long max) {

@@ -36,10 +36,15 @@ std::vector<std::string> PluginRegistry::default_search_path() {
       start = end + 1;
     }
   }
+  // Relative to the running program, so an installed tree works from whatever prefix it was
+  // unpacked into and no folder of the build machine is compiled in: first where the install
+  // puts the plugins beside the program's bin folder, then the build tree's layout (programs
+  // in build/apps, plugins in build/plugins).
   const auto exe_dir = executable_dir();
-  if (!exe_dir.empty()) path.push_back(exe_dir + "/../lib/lodestone/plugins");
-  path.emplace_back(LODE_INSTALL_PLUGIN_DIR);
-  path.emplace_back(LODE_BUILD_PLUGIN_DIR);
+  if (!exe_dir.empty()) {
+    path.push_back(exe_dir + "/" LODE_PLUGIN_DIR_FROM_BINDIR);
+    path.push_back(exe_dir + "/../plugins");
+  }
   return path;
 }
 

@@ -27,7 +27,7 @@ MANPATH="$TMP/prefix/share/man" MANWIDTH=80 man lode-run 2>/dev/null | grep -q -
   || { echo "FAIL: man lode-run (installed) does not show run's options"; exit 1; }
 MANPATH="$TMP/prefix/share/man" man lode 2>/dev/null | grep -q "replay" || { echo "FAIL: man lode lists no commands"; exit 1; }
 for c in $("$LODE" --help | sed -n '/^Subcommands:/,/^$/p' | awk 'NR > 1 && NF { print $1 }'); do
-  test -f "$TMP/prefix/share/man/man1/lode-$c.1" || { echo "FAIL: no man page for lode $c"; exit 1; }
+  test -f "$TMP/prefix/share/man/man1/lode-$c.1.gz" || { echo "FAIL: no man page for lode $c"; exit 1; }
 done
 completion=$(bash -c 'source "$1"; COMP_WORDS=(lode run --dur); COMP_CWORD=2; _lode; echo "${COMPREPLY[*]}"' _ \
   "$TMP/prefix/share/bash-completion/completions/lode")

@@ -16,7 +16,8 @@ mkdir -p $OUT
 rc=0
 
 echo "== 1. io.socketcan_daq unit tests on vcan0"
-LODE_CAN_INTERFACE=vcan0 $DAQ_TEST > $OUT/gtest.txt 2>&1
+# The plugins sit in the build tree's plugins/ beside apps/ (no compiled-in folder is searched).
+LODE_PLUGIN_PATH=$(dirname $LODE)/../plugins LODE_CAN_INTERFACE=vcan0 $DAQ_TEST > $OUT/gtest.txt 2>&1
 r=$?; echo "GTEST_RC=$r"; [ $r -eq 0 ] || rc=1
 grep -E "^\[ +(OK|FAILED|SKIPPED|PASSED) |vcan0:|silent node|heartbeat lost:|Failure|Expected|Which is|actual" $OUT/gtest.txt
 

@@ -1,8 +1,8 @@
 // Finding and loading plugins (dlopen), with clear errors.
 //
 // A plugin named "estimator.glsdc" lives in a file "lode-estimator.glsdc.so" in one of the
-// folders of the search path: $LODE_PLUGIN_PATH (colon-separated), then <exe>/../lib/
-// lodestone/plugins, then the install folder, then the build tree's plugin folder.
+// folders of the search path: $LODE_PLUGIN_PATH (colon-separated, first: it overrides), then
+// the installed plugin folder relative to the program's, then the build tree's <exe>/../plugins.
 // Libraries stay loaded for the life of the registry (plugins' objects must never outlive
 // their code, and dlclose of C++ code is a classic source of shutdown crashes).
 #pragma once
