@@ -22,7 +22,6 @@ PACKAGES=(build-essential g++ cmake make pkg-config
   qemu-system-x86 linux-image-amd64 busybox-static kmod cpio can-utils  # QEMU guest with a real vcan0 for the CAN test
   libcpp-httplib-dev                                        # lode scope's HTTP server
   libsystemd-dev                                            # lode run under systemd: sd_notify (READY, watchdog)
-  linux-image-rt-amd64                                      # the service test's QEMU guest boots Debian's PREEMPT_RT kernel
   chromium                                                  # lode plot --png, and the report test's browser
   mmdebstrap lintian)                                       # the package tests: a clean Debian root file system, lintian on the .debs
 # Node.js and npm install the plot report's chart library (apps/lode/plot/package-lock.json);

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The Debian packages, end to end:
-#   1. cpack builds lodestone, lodestone-dev and their dbgsym from this build tree;
+#   1. the packages cpack built from this build tree (build_packages.sh, run first by ctest):
+#      lodestone, lodestone-dev and their dbgsym;
 #   2. lintian reports no error; lodestone's Installed-Size is at most 30 MB; no installed
 #      file of either package holds the source or the build folder's path;
 #   3. in a clean root file system of the host's Debian release (make_rootfs.sh), apt installs
@@ -10,14 +11,14 @@
 # The .deb files apt downloads stay in BUILD/tests/apt-cache for the next run; the root file
 # system is made afresh each run and removed at the end.
 #
-# usage: package_test.sh BUILD_DIR SOURCE_DIR
+# usage: package_test.sh BUILD_DIR SOURCE_DIR PACKAGE_DIR
 # Exit 77 when a tool is missing (mmdebstrap, lintian, dpkg-shlibdeps) or without root.
 set -uo pipefail
-BUILD=$(realpath "$1") SRC=$(realpath "$2")
+BUILD=$(realpath "$1") SRC=$(realpath "$2") DEBS=$(realpath "$3")
 HERE=$(dirname "$(realpath "$0")")
 MAX_INSTALLED_KB=$((30 * 1024))
 
-for tool in cpack lintian mmdebstrap dpkg-deb dpkg-shlibdeps; do
+for tool in lintian mmdebstrap dpkg-deb dpkg-shlibdeps; do
   command -v "$tool" >/dev/null || { echo "SKIP: $tool is missing (setup.sh installs it)"; exit 77; }
 done
 [ "$(id -u)" -eq 0 ] || { echo "SKIP: making a root file system needs root"; exit 77; }
@@ -32,15 +33,13 @@ took=  # seconds since the previous stage, set by lap
 lap() { took="$((SECONDS - stage_start)) s"; stage_start=$SECONDS; }
 
 # --- 1. the packages ----------------------------------------------------------------------
-if ! cpack --config "$BUILD/CPackConfig.cmake" -G DEB -B "$TMP/debs" >"$TMP/cpack.log" 2>&1; then
-  tail -30 "$TMP/cpack.log"; echo "FAIL: cpack"; exit 1
-fi
+mkdir -p "$TMP/debs" && cp "$DEBS"/*.deb "$DEBS"/*.ddeb "$TMP/debs/" 2>/dev/null
 runtime_deb=$(ls "$TMP"/debs/lodestone_*.deb 2>/dev/null)
 dev_deb=$(ls "$TMP"/debs/lodestone-dev_*.deb 2>/dev/null)
-[ -n "$runtime_deb" ] && [ -n "$dev_deb" ] || { ls -R "$TMP/debs"; echo "FAIL: cpack made no lodestone and lodestone-dev .deb"; exit 1; }
+[ -n "$runtime_deb" ] && [ -n "$dev_deb" ] || { ls -R "$DEBS"; echo "FAIL: no lodestone and lodestone-dev .deb in $DEBS"; exit 1; }
 ls "$TMP"/debs/*.ddeb >/dev/null 2>&1 || bad "no debug symbol package (.ddeb)"
 lap
-ok "cpack: $(cd "$TMP/debs" && ls ./*.deb ./*.ddeb 2>/dev/null | tr '\n' ' ')($took)"
+ok "packages: $(cd "$TMP/debs" && ls ./*.deb ./*.ddeb 2>/dev/null | tr '\n' ' ')"
 
 # --- 2. lintian, size, build paths ---------------------------------------------------------
 # --fail-on error: warnings are reported (and listed in docs/deployment.md), errors fail.
