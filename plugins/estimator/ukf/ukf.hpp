@@ -50,6 +50,11 @@ namespace ukf {
 
 inline constexpr int kMaxPoints = 2 * nonlinear::kMaxStates + 1;
 
+/// Eigen storage of R x C (either Eigen::Dynamic) holding at most MaxR x MaxC; a single row is
+/// stored row-major, as Eigen requires of a fixed row vector.
+template <typename Scalar, int R, int C, int MaxR, int MaxC>
+using Storage = Eigen::Matrix<Scalar, R, C, (R == 1 && C != 1) ? Eigen::RowMajor : Eigen::ColMajor, MaxR, MaxC>;
+
 /// The weights of eq. 21 for L states.
 struct Weights {
   int states = 0;
@@ -94,17 +99,25 @@ enum class Sums { about_centre, raw };
 /// evaluated at double(chi_0) + double(d_i) and the propagated deviation f(chi_i) - f(chi_0)
 /// formed in double before it is stored. raw is the paper's literal form (absolute points,
 /// sums of W_i chi_i); with Scalar = double the two agree to rounding.
-template <typename Scalar>
+///
+/// States and Channels: the sizes at compile time, or Eigen::Dynamic (any size up to
+/// kMaxStates x kMaxChannels, chosen in configure()). Fixed sizes take Eigen's small-matrix
+/// code (unrolled products, no size checks, no memmove of capacity-12 storage); both run the
+/// same operations in the same order, so a fixed instance gives the dynamic one's results.
+template <typename Scalar, int States = Eigen::Dynamic, int Channels = Eigen::Dynamic>
 class UnscentedCore {
+  static constexpr int kN = States == Eigen::Dynamic ? nonlinear::kMaxStates : States;
+  static constexpr int kM = Channels == Eigen::Dynamic ? nonlinear::kMaxChannels : Channels;
+  static constexpr int kPoints = States == Eigen::Dynamic ? Eigen::Dynamic : 2 * States + 1;
+
  public:
-  using Vector = Eigen::Matrix<Scalar, Eigen::Dynamic, 1, 0, nonlinear::kMaxStates, 1>;
-  using Matrix = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, 0, nonlinear::kMaxStates, nonlinear::kMaxStates>;
-  using Points = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, 0, nonlinear::kMaxStates, kMaxPoints>;
-  using MVector = Eigen::Matrix<Scalar, Eigen::Dynamic, 1, 0, nonlinear::kMaxChannels, 1>;
-  using MMatrix =
-      Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, 0, nonlinear::kMaxChannels, nonlinear::kMaxChannels>;
-  using MPoints = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, 0, nonlinear::kMaxChannels, kMaxPoints>;
-  using Gain = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, 0, nonlinear::kMaxStates, nonlinear::kMaxChannels>;
+  using Vector = Storage<Scalar, States, 1, kN, 1>;
+  using Matrix = Storage<Scalar, States, States, kN, kN>;
+  using Points = Storage<Scalar, States, kPoints, kN, 2 * kN + 1>;
+  using MVector = Storage<Scalar, Channels, 1, kM, 1>;
+  using MMatrix = Storage<Scalar, Channels, Channels, kM, kM>;
+  using MPoints = Storage<Scalar, Channels, kPoints, kM, 2 * kN + 1>;
+  using Gain = Storage<Scalar, States, Channels, kN, kM>;
 
   /// `redraw`: draw the points again around (x^-, P^-) after the prediction, so that the
   /// measurement update sees Q; false is the paper's eq. 25 (the propagated points go through h
@@ -132,7 +145,9 @@ class UnscentedCore {
     gain_.setZero(n_, m_);
   }
 
-  void set(const Vector& x, const Matrix& P) noexcept {
+  /// x and P: any Eigen storage of the configured sizes (e.g. the block's capacity-12 ones).
+  template <class X, class Cov>
+  void set(const X& x, const Cov& P) noexcept {
     x_ = x;
     P_ = P;
   }
@@ -141,12 +156,18 @@ class UnscentedCore {
   bool draw() noexcept {
     llt_.compute(spread_ * P_);
     if (llt_.info() != Eigen::Success) return false;
-    const Matrix S = llt_.matrixL();
+    const Matrix& S = llt_.matrixLLT();  // L in the lower triangle (its upper part is not read)
     centre_ = x_;
     chi_.col(0).setZero();
     for (int i = 0; i < n_; ++i) {
-      chi_.col(1 + i) = S.col(i);
-      chi_.col(1 + n_ + i) = -S.col(i);
+      for (int j = 0; j < i; ++j) {
+        chi_(j, 1 + i) = Scalar(0);
+        chi_(j, 1 + n_ + i) = -Scalar(0);  // as -S.col(i) of the zero-filled factor
+      }
+      for (int j = i; j < n_; ++j) {
+        chi_(j, 1 + i) = S(j, i);
+        chi_(j, 1 + n_ + i) = -S(j, i);
+      }
     }
     if (sums_ == Sums::raw) {  // absolute points
       for (int i = 0; i < points_; ++i) chi_.col(i) += x_;
@@ -156,9 +177,9 @@ class UnscentedCore {
 
   /// eq. 22-24: push the points through f and form x^-, P^- (+ Q). The state is committed
   /// only if finite; returns false otherwise.
-  template <class F>
-  bool predict(F&& f, const Matrix& Q) noexcept {
-    std::array<double, nonlinear::kMaxStates> x{}, base{}, next{};
+  template <class F, class Cov>
+  bool predict(F&& f, const Cov& Q) noexcept {
+    std::array<double, kN> x, base, next;  // the first n_ of each are written before they are read
     if (sums_ == Sums::about_centre) {
       for (int j = 0; j < n_; ++j) x[j] = static_cast<double>(centre_(j));
       f(x.data(), base.data());
@@ -187,13 +208,16 @@ class UnscentedCore {
   }
 
   /// eq. 25-31 with the current points (propagated, or drawn when there was no prediction).
-  template <class H>
-  bool update(H&& h, const MVector& y, const MMatrix& R) noexcept {
-    std::array<double, nonlinear::kMaxStates> x{};
-    std::array<double, nonlinear::kMaxChannels> base{}, out{};
-    MVector y_hat(m_);
-    Vector x_dev(n_);   // x^- relative to the centre point (about_centre) or x^- itself (raw)
-    MVector y_dev(m_);  // y^ relative to Y_0 (about_centre)
+  template <class H, class Y, class Noise>
+  bool update(H&& h, const Y& y, const Noise& R) noexcept {
+    std::array<double, kN> x;  // the first n_ (m_) of each are written before they are read
+    std::array<double, kM> base, out;
+    MVector y_hat;
+    Vector x_dev;  // x^- relative to the centre point (about_centre) or x^- itself (raw)
+    MVector y_dev;  // y^ relative to Y_0 (about_centre)
+    y_hat.resize(m_);
+    x_dev.setZero(n_);
+    y_dev.setZero(m_);
     if (sums_ == Sums::about_centre) {
       for (int j = 0; j < n_; ++j) x[j] = static_cast<double>(centre_(j));
       h(x.data(), base.data());
@@ -203,8 +227,6 @@ class UnscentedCore {
         h(x.data(), out.data());
         for (int c = 0; c < m_; ++c) upsilon_(c, i) = static_cast<Scalar>(out[c] - base[c]);
       }
-      x_dev.setZero();
-      y_dev.setZero();
       for (int i = 1; i < points_; ++i) {
         x_dev += wi_ * chi_.col(i);
         y_dev += wi_ * upsilon_.col(i);
@@ -231,10 +253,19 @@ class UnscentedCore {
       Pyy.noalias() += w * dy * dy.transpose();
       Pxy.noalias() += w * dx * dy.transpose();
     }
-    Pyy = (Scalar(0.5) * (Pyy + Pyy.transpose())).eval();
-    Eigen::LLT<MMatrix> pyy_llt(Pyy);
-    if (pyy_llt.info() != Eigen::Success) return false;
-    const Gain K = pyy_llt.solve(Pxy.transpose()).transpose();  // eq. 29
+    Gain K;  // eq. 29
+    if constexpr (Channels == 1) {
+      // P_yy is a number (symmetric as it is): its Cholesky factor is sqrt(P_yy) and the two
+      // triangular solves scale by its reciprocal, as Eigen's LLT solve does.
+      if (!(Pyy(0, 0) > Scalar(0)) && !std::isnan(Pyy(0, 0))) return false;
+      const Scalar inverse_root = Scalar(1) / std::sqrt(Pyy(0, 0));
+      K = (Pxy * inverse_root) * inverse_root;
+    } else {
+      Pyy = (Scalar(0.5) * (Pyy + Pyy.transpose())).eval();
+      Eigen::LLT<MMatrix> pyy_llt(Pyy);
+      if (pyy_llt.info() != Eigen::Success) return false;
+      K = pyy_llt.solve(Pxy.transpose()).transpose();
+    }
     MVector innovation = y - y_hat;
     if (sums_ == Sums::about_centre) innovation = (y - y_centre_) - y_dev;  // no cancellation of |y|
     Vector x_new = x_ + K * innovation;                                      // eq. 30
@@ -306,7 +337,10 @@ class UnscentedCore {
 class UnscentedEstimator final : public nonlinear::ModelEstimator {
  public:
   [[nodiscard]] const ukf::Weights& weights() const { return weights_; }
-  [[nodiscard]] const nonlinear::GainMatrix& gain() const { return core_.gain(); }
+  /// K of the last update (a copy off the RT thread).
+  [[nodiscard]] const nonlinear::GainMatrix& gain() const;
+  /// Whether configure() chose a core sized at compile time for the model's (n, m).
+  [[nodiscard]] bool fixed_size() const { return fixed_; }
 
  protected:
   void read_filter_params(Params& params) override;
@@ -320,8 +354,30 @@ class UnscentedEstimator final : public nonlinear::ModelEstimator {
   double beta_ = 2.0;
   double kappa_ = 0.0;
   bool redraw_ = false;
+  bool compile_time_sizes_ = true;
   ukf::Weights weights_;
-  ukf::UnscentedCore<double> core_;
+
+  /// A core with its constant operands (Q_k, R) stored in its own sizes, so that step()
+  /// mixes no capacity-12 storage into the small products.
+  template <int States, int Channels>
+  struct Sized {
+    using Core = ukf::UnscentedCore<double, States, Channels>;
+    Core core;
+    typename Core::Matrix Q;
+    typename Core::MMatrix R;
+    typename Core::MVector y;
+  };
+  template <class S>
+  void prepare(S& sized);
+  template <class S>
+  StepStatus cycle(S& sized, bool first) noexcept;
+
+  // The sizes of the shipped models (plant.suspension with one gap channel) have their own
+  // core; any other (n, m) runs the dynamic one.
+  bool fixed_ = false;
+  Sized<3, 1> suspension_;
+  Sized<Eigen::Dynamic, Eigen::Dynamic> any_;
+  mutable nonlinear::GainMatrix gain_copy_;
 };
 
 }  // namespace lode::plugins

@@ -502,4 +502,40 @@ TEST(UkfBlock, StepDoesNotAllocate) {
 constexpr const char* kStatePlugin = "estimator.ukf";
 #include "estimator/testing/model_estimator_state_tests.inc"
 
+TEST(UkfBlock, SizedAlgebraGivesTheGenericResultsBitForBit) {
+  // The suspension (n = 3, m = 1) runs a core sized at compile time; compile_time_sizes: false
+  // runs the generic one. Same operations in the same order: the same bits, cycle by cycle,
+  // and neither allocates in step().
+  LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
+  LODE_REQUIRE_ALLOCATION_COUNTING();
+  const Benchmark b = make_benchmark(3000);
+  lode::testing::BlockHarness sized("estimator.ukf", kBlock, 2000.0, kModels);
+  lode::testing::BlockHarness generic("estimator.ukf", kBlock + "compile_time_sizes: false\n", 2000.0, kModels);
+  for (auto* h : {&sized, &generic}) {
+    feed_standard(*h);
+    ASSERT_TRUE(started(*h));
+  }
+  EXPECT_TRUE(dynamic_cast<lode::plugins::UnscentedEstimator&>(sized.block()).fixed_size());
+  EXPECT_FALSE(dynamic_cast<lode::plugins::UnscentedEstimator&>(generic.block()).fixed_size());
+  EXPECT_EQ(generic.describe().find("filter")->find("algebra")->as_string(), "generic (sizes chosen at configure)");
+  std::size_t allocations = 0;
+  for (std::size_t k = 0; k < b.y.size(); ++k) {
+    for (auto* h : {&sized, &generic}) {
+      h->input("measurement")[0] = b.y[k];
+      h->input("input")[0] = b.truth[k][0];
+      h->input("input")[1] = b.u[k];
+      allocations += lode::estimator_testing::allocations_during(
+          [&] { ASSERT_EQ(h->step(), lode::StepStatus::ok) << h->block().fault_reason(); });
+    }
+    for (const char* port : {"state", "std", "innovation"}) {
+      const auto a = sized.output(port);
+      const auto g = generic.output(port);
+      for (std::size_t i = 0; i < a.size(); ++i) {
+        ASSERT_EQ(a[i], g[i]) << port << "[" << i << "] at cycle " << k << " differs by " << a[i] - g[i];
+      }
+    }
+  }
+  EXPECT_EQ(allocations, 0u) << "step() allocated";
+}
+
 }  // namespace
