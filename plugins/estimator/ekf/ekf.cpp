@@ -51,22 +51,23 @@ template <int R, int C, int MaxR, int MaxC>
 using Storage = Eigen::Matrix<double, R, C, (R == 1 && C != 1) ? Eigen::RowMajor : Eigen::ColMajor,
                               R == Eigen::Dynamic ? MaxR : R, C == Eigen::Dynamic ? MaxC : C>;
 
-/// a b, each coefficient summed over k in order from k = 0: the order Eigen's product of
-/// capacity-sized (dynamic) matrices takes. Its fixed-size product of a 3-long inner dimension
-/// sums as a tree, a0 b0 + (a1 b1 + a2 b2), which changes the last bit; this keeps a sized
-/// instance bit-identical to the dynamic one.
-template <class Result, class A, class B>
-Result sequential_product(const A& a, const B& b) noexcept {
-  Result r;
-  r.resize(a.rows(), b.cols());
-  for (Eigen::Index j = 0; j < r.cols(); ++j) {
-    for (Eigen::Index i = 0; i < r.rows(); ++i) {
+/// r = a b (or a b' when TransposeB), each coefficient summed over k in order from k = 0: the
+/// order Eigen's product of capacity-sized (dynamic) matrices takes. Its fixed-size product
+/// of a 3-long inner dimension sums as a tree, a0 b0 + (a1 b1 + a2 b2), which changes the last
+/// bit; this keeps a sized instance bit-identical to the dynamic one. a is R x K, b K x C (C x K
+/// transposed), all stored column by column (a single row or column is the same either way).
+template <int R, int K, int C, bool TransposeB>
+void sequential_product(const double* a, const double* b, double* r) noexcept {
+#pragma GCC unroll 4
+  for (int j = 0; j < C; ++j) {
+#pragma GCC unroll 4
+    for (int i = 0; i < R; ++i) {
       double sum = 0.0;
-      for (Eigen::Index k = 0; k < a.cols(); ++k) sum += a(i, k) * b(k, j);
-      r(i, j) = sum;
+#pragma GCC unroll 4
+      for (int k = 0; k < K; ++k) sum += a[i + k * R] * (TransposeB ? b[j + k * C] : b[k + j * K]);
+      r[i + j * R] = sum;
     }
   }
-  return r;
 }
 
 }  // namespace
@@ -85,17 +86,27 @@ StepStatus ExtendedEstimator::cycle(bool first) noexcept {
   const auto m = static_cast<Eigen::Index>(m_);
   // Products: Eigen's own for the dynamic sizes, summed in its order for the sized ones.
   constexpr bool sized = States != Eigen::Dynamic;
-  const auto product = [](const auto& a, const auto& b) {
-    using Result = Storage<std::decay_t<decltype(a)>::RowsAtCompileTime, std::decay_t<decltype(b)>::ColsAtCompileTime,
-                           kN, kN>;
+  const auto multiply = [](const auto& a, const auto& b, auto transpose_b) {
+    using A = std::decay_t<decltype(a)>;
+    using B = std::decay_t<decltype(b)>;
+    constexpr bool transposed = decltype(transpose_b)::value;
+    constexpr int rows = A::RowsAtCompileTime;
+    constexpr int cols = transposed ? B::RowsAtCompileTime : B::ColsAtCompileTime;
+    using Result = Storage<rows, cols, kN, kN>;
+    Result r;
     if constexpr (sized) {
-      return sequential_product<Result>(a, b);
+      sequential_product<rows, A::ColsAtCompileTime, cols, transposed>(a.data(), b.data(), r.data());
+    } else if constexpr (transposed) {
+      r.resize(a.rows(), b.rows());
+      r.noalias() = a * b.transpose();
     } else {
-      Result r(a.rows(), b.cols());
+      r.resize(a.rows(), b.cols());
       r.noalias() = a * b;
-      return r;
     }
+    return r;
   };
+  const auto product = [&](const auto& a, const auto& b) { return multiply(a, b, std::false_type{}); };
+  const auto product_transposed = [&](const auto& a, const auto& b) { return multiply(a, b, std::true_type{}); };
   const Vector x_post = x_;
   Vector x_prior = x_post;
   Matrix P_prior = P_;
@@ -110,7 +121,7 @@ StepStatus ExtendedEstimator::cycle(bool first) noexcept {
     }
     propagate(x_post.data(), x_prior.data());
     const Matrix F_P = product(F, P_post);
-    P_prior = product(F_P, F.transpose());
+    P_prior = product_transposed(F_P, F);
     P_prior += Q_;
   }
   // Measurement update about x_{k|k-1}.
@@ -120,7 +131,7 @@ StepStatus ExtendedEstimator::cycle(bool first) noexcept {
   measure_jacobian_into(x_prior.data(), u_.data(), y_hat.data(), H);
   const Observation H_P = product(H, P_prior);
   MMatrix S = R_;
-  S += product(H_P, H.transpose());
+  S += product_transposed(H_P, H);
   Gain K;
   if constexpr (Channels == 1) {
     // S is a number: its Cholesky factor is sqrt(S) and the two triangular solves scale by
@@ -140,9 +151,9 @@ StepStatus ExtendedEstimator::cycle(bool first) noexcept {
   Matrix I_KH = Matrix::Identity(n, n);
   I_KH -= product(K, H);
   const Matrix I_KH_P = product(I_KH, P_prior);
-  Matrix P = product(I_KH_P, I_KH.transpose());
+  Matrix P = product_transposed(I_KH_P, I_KH);
   const Gain K_R = product(K, MMatrix(R_));
-  P += product(K_R, K.transpose());
+  P += product_transposed(K_R, K);
   P = (0.5 * (P + P.transpose())).eval();
   if (!x.allFinite() || !P.allFinite()) return fault("EKF: the updated state or covariance is not finite");
   x_ = x;

@@ -171,8 +171,15 @@ class UnscentedCore {
     }
     if (sums_ == Sums::raw) {  // absolute points
       for (int i = 0; i < points_; ++i) chi_.col(i) += x_;
+      return chi_.allFinite();
     }
-    return chi_.allFinite();
+    // The deviations are +-L (and zeros): finite exactly when the factor's lower triangle is.
+    for (int i = 0; i < n_; ++i) {
+      for (int j = i; j < n_; ++j) {
+        if (!std::isfinite(S(j, i))) return false;
+      }
+    }
+    return true;
   }
 
   /// eq. 22-24: push the points through f and form x^-, P^- (+ Q). The state is committed
@@ -291,9 +298,39 @@ class UnscentedCore {
   [[nodiscard]] const Gain& gain() const noexcept { return gain_; }
 
  private:
+  /// cov += w d d' (d: States numbers), element by element as Eigen forms it: (w d_j) d_k.
+  static void rank_one_update(Matrix& cov, Scalar w, const Scalar* d) noexcept {
+#pragma GCC unroll 12
+    for (int k = 0; k < States; ++k) {
+#pragma GCC unroll 12
+      for (int j = 0; j < States; ++j) cov(j, k) += (w * d[j]) * d[k];
+    }
+  }
+
   /// Weighted mean and covariance of the points (without Q).
   void moments(Vector& mean, Matrix& cov) const noexcept {
     cov.setZero(n_, n_);
+    if constexpr (States != Eigen::Dynamic) {
+      if (sums_ == Sums::about_centre) {
+        // The generic branch below written out for a size known at compile time, the same
+        // operations element by element: dbar_j += Wi d_ij, then cov += (w d_j) d_k.
+        std::array<Scalar, States> dbar{};
+        for (int i = 1; i < points_; ++i) {
+#pragma GCC unroll 12
+          for (int j = 0; j < States; ++j) dbar[j] += wi_ * chi_(j, i);
+        }
+#pragma GCC unroll 12
+        for (int j = 0; j < States; ++j) mean(j) = centre_(j) + dbar[j];
+        rank_one_update(cov, wc0_, dbar.data());
+        for (int i = 1; i < points_; ++i) {
+          std::array<Scalar, States> d;
+#pragma GCC unroll 12
+          for (int j = 0; j < States; ++j) d[j] = chi_(j, i) - dbar[j];
+          rank_one_update(cov, wi_, d.data());
+        }
+        return;
+      }
+    }
     if (sums_ == Sums::about_centre) {
       Vector dbar = Vector::Zero(n_);  // x^- - chi_0 = sum_{i>=1} Wi d_i (sum of W^m = 1)
       for (int i = 1; i < points_; ++i) dbar += wi_ * chi_.col(i);
