@@ -159,23 +159,23 @@ class UnscentedCore {
     const Matrix& S = llt_.matrixLLT();  // L in the lower triangle (its upper part is not read)
     centre_ = x_;
     chi_.col(0).setZero();
-    for (int i = 0; i < n_; ++i) {
+    for (int i = 0; i < n(); ++i) {
       for (int j = 0; j < i; ++j) {
         chi_(j, 1 + i) = Scalar(0);
-        chi_(j, 1 + n_ + i) = -Scalar(0);  // as -S.col(i) of the zero-filled factor
+        chi_(j, 1 + n() + i) = -Scalar(0);  // as -S.col(i) of the zero-filled factor
       }
-      for (int j = i; j < n_; ++j) {
+      for (int j = i; j < n(); ++j) {
         chi_(j, 1 + i) = S(j, i);
-        chi_(j, 1 + n_ + i) = -S(j, i);
+        chi_(j, 1 + n() + i) = -S(j, i);
       }
     }
     if (sums_ == Sums::raw) {  // absolute points
-      for (int i = 0; i < points_; ++i) chi_.col(i) += x_;
+      for (int i = 0; i < points(); ++i) chi_.col(i) += x_;
       return chi_.allFinite();
     }
     // The deviations are +-L (and zeros): finite exactly when the factor's lower triangle is.
-    for (int i = 0; i < n_; ++i) {
-      for (int j = i; j < n_; ++j) {
+    for (int i = 0; i < n(); ++i) {
+      for (int j = i; j < n(); ++j) {
         if (!std::isfinite(S(j, i))) return false;
       }
     }
@@ -188,19 +188,19 @@ class UnscentedCore {
   bool predict(F&& f, const Cov& Q) noexcept {
     std::array<double, kN> x, base, next;  // the first n_ of each are written before they are read
     if (sums_ == Sums::about_centre) {
-      for (int j = 0; j < n_; ++j) x[j] = static_cast<double>(centre_(j));
+      for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(centre_(j));
       f(x.data(), base.data());
-      for (int i = 1; i < points_; ++i) {
-        for (int j = 0; j < n_; ++j) x[j] = static_cast<double>(centre_(j)) + static_cast<double>(chi_(j, i));
+      for (int i = 1; i < points(); ++i) {
+        for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(centre_(j)) + static_cast<double>(chi_(j, i));
         f(x.data(), next.data());
-        for (int j = 0; j < n_; ++j) chi_(j, i) = static_cast<Scalar>(next[j] - base[j]);
+        for (int j = 0; j < n(); ++j) chi_(j, i) = static_cast<Scalar>(next[j] - base[j]);
       }
-      for (int j = 0; j < n_; ++j) centre_(j) = static_cast<Scalar>(base[j]);
+      for (int j = 0; j < n(); ++j) centre_(j) = static_cast<Scalar>(base[j]);
     } else {
-      for (int i = 0; i < points_; ++i) {
-        for (int j = 0; j < n_; ++j) x[j] = static_cast<double>(chi_(j, i));
+      for (int i = 0; i < points(); ++i) {
+        for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(chi_(j, i));
         f(x.data(), next.data());
-        for (int j = 0; j < n_; ++j) chi_(j, i) = static_cast<Scalar>(next[j]);
+        for (int j = 0; j < n(); ++j) chi_(j, i) = static_cast<Scalar>(next[j]);
       }
     }
     Vector mean;
@@ -226,32 +226,32 @@ class UnscentedCore {
     x_dev.setZero(n_);
     y_dev.setZero(m_);
     if (sums_ == Sums::about_centre) {
-      for (int j = 0; j < n_; ++j) x[j] = static_cast<double>(centre_(j));
+      for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(centre_(j));
       h(x.data(), base.data());
       upsilon_.col(0).setZero();
-      for (int i = 1; i < points_; ++i) {
-        for (int j = 0; j < n_; ++j) x[j] = static_cast<double>(centre_(j)) + static_cast<double>(chi_(j, i));
+      for (int i = 1; i < points(); ++i) {
+        for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(centre_(j)) + static_cast<double>(chi_(j, i));
         h(x.data(), out.data());
-        for (int c = 0; c < m_; ++c) upsilon_(c, i) = static_cast<Scalar>(out[c] - base[c]);
+        for (int c = 0; c < m(); ++c) upsilon_(c, i) = static_cast<Scalar>(out[c] - base[c]);
       }
-      for (int i = 1; i < points_; ++i) {
+      for (int i = 1; i < points(); ++i) {
         x_dev += wi_ * chi_.col(i);
         y_dev += wi_ * upsilon_.col(i);
       }
-      for (int c = 0; c < m_; ++c) y_centre_(c) = static_cast<Scalar>(base[c]);
+      for (int c = 0; c < m(); ++c) y_centre_(c) = static_cast<Scalar>(base[c]);
       y_hat = y_centre_ + y_dev;
     } else {
-      for (int i = 0; i < points_; ++i) {
-        for (int j = 0; j < n_; ++j) x[j] = static_cast<double>(chi_(j, i));
+      for (int i = 0; i < points(); ++i) {
+        for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(chi_(j, i));
         h(x.data(), out.data());
-        for (int c = 0; c < m_; ++c) upsilon_(c, i) = static_cast<Scalar>(out[c]);
+        for (int c = 0; c < m(); ++c) upsilon_(c, i) = static_cast<Scalar>(out[c]);
       }
       y_hat = wm0_ * upsilon_.col(0);
-      for (int i = 1; i < points_; ++i) y_hat += wi_ * upsilon_.col(i);
+      for (int i = 1; i < points(); ++i) y_hat += wi_ * upsilon_.col(i);
     }
     MMatrix Pyy = R;
     Gain Pxy = Gain::Zero(n_, m_);
-    for (int i = 0; i < points_; ++i) {
+    for (int i = 0; i < points(); ++i) {
       const Scalar w = i == 0 ? wc0_ : wi_;
       // chi_i - x^- and Y_i - y^, from deviations (about_centre) or absolute values (raw).
       const Vector dx = sums_ == Sums::about_centre ? Vector(chi_.col(i) - x_dev) : Vector(chi_.col(i) - x_);
@@ -315,14 +315,14 @@ class UnscentedCore {
         // The generic branch below written out for a size known at compile time, the same
         // operations element by element: dbar_j += Wi d_ij, then cov += (w d_j) d_k.
         std::array<Scalar, States> dbar{};
-        for (int i = 1; i < points_; ++i) {
+        for (int i = 1; i < points(); ++i) {
 #pragma GCC unroll 12
           for (int j = 0; j < States; ++j) dbar[j] += wi_ * chi_(j, i);
         }
 #pragma GCC unroll 12
         for (int j = 0; j < States; ++j) mean(j) = centre_(j) + dbar[j];
         rank_one_update(cov, wc0_, dbar.data());
-        for (int i = 1; i < points_; ++i) {
+        for (int i = 1; i < points(); ++i) {
           std::array<Scalar, States> d;
 #pragma GCC unroll 12
           for (int j = 0; j < States; ++j) d[j] = chi_(j, i) - dbar[j];
@@ -333,22 +333,27 @@ class UnscentedCore {
     }
     if (sums_ == Sums::about_centre) {
       Vector dbar = Vector::Zero(n_);  // x^- - chi_0 = sum_{i>=1} Wi d_i (sum of W^m = 1)
-      for (int i = 1; i < points_; ++i) dbar += wi_ * chi_.col(i);
+      for (int i = 1; i < points(); ++i) dbar += wi_ * chi_.col(i);
       mean = centre_ + dbar;
       cov.noalias() += wc0_ * dbar * dbar.transpose();
-      for (int i = 1; i < points_; ++i) {
+      for (int i = 1; i < points(); ++i) {
         const Vector d = chi_.col(i) - dbar;
         cov.noalias() += wi_ * d * d.transpose();
       }
       return;
     }
     mean = wm0_ * chi_.col(0);
-    for (int i = 1; i < points_; ++i) mean += wi_ * chi_.col(i);
-    for (int i = 0; i < points_; ++i) {
+    for (int i = 1; i < points(); ++i) mean += wi_ * chi_.col(i);
+    for (int i = 0; i < points(); ++i) {
       const Vector d = chi_.col(i) - mean;
       cov.noalias() += (i == 0 ? wc0_ : wi_) * d * d.transpose();
     }
   }
+
+  // The sizes, as constants when they are known at compile time (the loops then unroll).
+  [[nodiscard]] int n() const noexcept { return States == Eigen::Dynamic ? n_ : States; }
+  [[nodiscard]] int m() const noexcept { return Channels == Eigen::Dynamic ? m_ : Channels; }
+  [[nodiscard]] int points() const noexcept { return States == Eigen::Dynamic ? points_ : 2 * States + 1; }
 
   int n_ = 0;
   int m_ = 0;
