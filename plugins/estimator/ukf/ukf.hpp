@@ -137,6 +137,7 @@ class UnscentedCore {
     P_.setIdentity(n_, n_);
     centre_.setZero(n_);
     chi_.setZero(n_, points_);
+    factor_.setZero(n_, n_);
     y_centre_.setZero(m_);
     upsilon_.setZero(m_, points_);
     innovation_.setZero(m_);
@@ -154,9 +155,14 @@ class UnscentedCore {
 
   /// eq. 20: points around (x, P). False if (L + lambda) P is not positive definite.
   bool draw() noexcept {
-    llt_.compute(spread_ * P_);
-    if (llt_.info() != Eigen::Success) return false;
-    const Matrix& S = llt_.matrixLLT();  // L in the lower triangle (its upper part is not read)
+    if constexpr (States == 3) {
+      if (!cholesky_3x3(spread_ * P_, factor_)) return false;
+    } else {
+      llt_.compute(spread_ * P_);
+      if (llt_.info() != Eigen::Success) return false;
+      factor_ = llt_.matrixLLT();
+    }
+    const Matrix& S = factor_;  // L in the lower triangle (its upper part is not read)
     centre_ = x_;
     chi_.col(0).setZero();
     for (int i = 0; i < n(); ++i) {
@@ -298,6 +304,31 @@ class UnscentedCore {
   [[nodiscard]] const Gain& gain() const noexcept { return gain_; }
 
  private:
+  /// The lower Cholesky factor of a 3 x 3 A into L's lower triangle, with the operations of
+  /// Eigen's LLT in its order (so the same bits) without its run-time-sized blocks. False
+  /// where Eigen's fails: a pivot <= 0 (a NaN pivot goes on, as there, and shows as NaN in L).
+  template <class A>
+  static bool cholesky_3x3(const A& a, Matrix& L) noexcept {
+    Scalar x = a(0, 0);
+    if (x <= Scalar(0)) return false;
+    const Scalar l00 = std::sqrt(x);
+    const Scalar l10 = a(1, 0) / l00;
+    const Scalar l20 = a(2, 0) / l00;
+    x = a(1, 1) - l10 * l10;
+    if (x <= Scalar(0)) return false;
+    const Scalar l11 = std::sqrt(x);
+    const Scalar l21 = (a(2, 1) - l20 * l10) / l11;
+    x = a(2, 2) - (l20 * l20 + l21 * l21);
+    if (x <= Scalar(0)) return false;
+    L(0, 0) = l00;
+    L(1, 0) = l10;
+    L(2, 0) = l20;
+    L(1, 1) = l11;
+    L(2, 1) = l21;
+    L(2, 2) = std::sqrt(x);
+    return true;
+  }
+
   /// cov += w d d' (d: States numbers), element by element as Eigen forms it: (w d_j) d_k.
   static void rank_one_update(Matrix& cov, Scalar w, const Scalar* d) noexcept {
 #pragma GCC unroll 12
@@ -372,6 +403,7 @@ class UnscentedCore {
   MVector y_hat_;
   Gain gain_;
   Eigen::LLT<Matrix> llt_;
+  Matrix factor_;  ///< the lower Cholesky factor of (L + lambda) P
 };
 
 }  // namespace ukf

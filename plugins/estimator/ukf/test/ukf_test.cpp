@@ -327,7 +327,8 @@ TEST(UkfCore, RefusesACovarianceThatIsNotPositiveDefinite) {
 const char* const kModels =
     "plant: {plugin: plant.suspension, mass_kg: 6.0e-3, force_b_n_m2_per_a: 4.85e-5}\n"
     "hall_distance: {plugin: sensor.hall_gap, output: gap}\n"
-    "hall_volts: {plugin: sensor.hall_gap}\n";
+    "hall_volts: {plugin: sensor.hall_gap}\n"
+    "hall_strong_coil: {plugin: sensor.hall_gap, coil_polynomial_v: [0.0, 0.1, 2.544]}\n";
 
 const std::string kBlock = suspension_estimator(kHallDistanceNoise, 0.9);
 
@@ -423,6 +424,33 @@ TEST(UkfBlock, EstimatesFromHallVoltagesThroughTheNonlinearModel) {
   const double rms = std::sqrt(sum / count);
   std::printf("UKF on Hall volts (2 mV noise): gap error rms %.2f um\n", rms * 1e6);
   EXPECT_LT(rms, 40e-6);
+}
+
+TEST(UkfBlock, TheHallModelTakesTheCoilVoltageFromTheInput) {
+  // h(gap, coil_voltage) with coil_voltage a process input, not a state: with 0.1 V per coil
+  // volt (the paper's is 9e-5) reading anything else for it (e.g. the velocity, the state at
+  // its position) would shift C_H by ~0.17 V, millimetres of gap.
+  LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
+  const Benchmark b = make_benchmark(3000);
+  lode::testing::BlockHarness h(
+      "estimator.ukf",
+      suspension_estimator(
+          "measurement: hall_strong_coil\nq: [5.6e-8, 1.7e-8, 7.71e-3]\nprocess_noise: per_second\nr: 4e-6\n",
+          b.truth[0][2]),
+      2000.0, kModels);
+  h.feed("measurement", {{"hall", "V"}});
+  h.feed("input", {{"gap", "m"}, {"coil_voltage", "V"}});
+  ASSERT_TRUE(started(h));
+  lode::plugins::hall::Conversion c = lode::plugins::hall::Conversion::paper();
+  c.coil_v = lode::plugins::hall::Polynomial::from({0.0, 0.1, 2.544});
+  double worst = 0.0;
+  for (std::size_t k = 0; k < b.y.size(); ++k) {
+    h.input("measurement")[0] = c.compensated_for_distance(b.truth[k][0] * 1e3) + c.coil_v.value(b.u[k]);
+    h.input("input")[1] = b.u[k];
+    ASSERT_EQ(h.step(), lode::StepStatus::ok) << h.block().fault_reason();
+    if (k >= 1000) worst = std::max(worst, std::abs(h.output("state")[0] - b.truth[k][0]));
+  }
+  EXPECT_LT(worst, 100e-6) << "gap error of a noiseless Hall reading";
 }
 
 TEST(UkfBlock, NonFiniteInputFaultsAndLeavesTheEstimate) {
