@@ -96,6 +96,11 @@ Status ModelEstimator::configure(ConfigureContext& ctx) {
     measurement_state_.push_back(source);
   }
 
+  measurement_reads_leading_states_ = true;
+  for (std::size_t j = 0; j < measurement_state_.size(); ++j) {
+    if (measurement_state_[j].from_input || measurement_state_[j].index != j) measurement_reads_leading_states_ = false;
+  }
+
   // Inputs, by name.
   std::string why;
   if (const Elements* source = ctx.input_source("measurement"); source == nullptr) {
@@ -260,6 +265,10 @@ bool ModelEstimator::innovation(double* residual, double* variance) const noexce
 }
 
 void ModelEstimator::measure(const double* x, double* y) const noexcept {
+  if (measurement_reads_leading_states_) {  // h's state is x's first elements: no copy
+    measurement_->evaluate(x, y);
+    return;
+  }
   std::array<double, kMaxStates + kMaxInputs> model_state;  // the first measurement_state_.size() are set
   gather_measurement_state(x, u_.data(), model_state.data());
   measurement_->evaluate(model_state.data(), y);

@@ -213,6 +213,8 @@ class ModelEstimator : public Block, public EstimatorState {
   NoiseBasis noise_basis_ = NoiseBasis::per_step;
   Eigen::MatrixXd q_configured_;
   std::vector<ElementSource> measurement_state_;
+  /// h depends on the process state's first elements in their order (e.g. the gap alone).
+  bool measurement_reads_leading_states_ = false;
   std::vector<std::size_t> measurement_index_;  ///< channel c is element measurement_index_[c] of the input
   std::vector<std::size_t> input_index_;
   bool first_ = true;
