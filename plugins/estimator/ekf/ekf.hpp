@@ -36,6 +36,8 @@ class ExtendedEstimator final : public nonlinear::ModelEstimator {
   /// Whether the last prediction used the model's analytic Jacobian.
   [[nodiscard]] bool used_analytic_jacobian() const { return used_analytic_; }
   [[nodiscard]] const nonlinear::GainMatrix& gain() const { return gain_; }
+  /// Whether configure() chose the algebra sized at compile time for the model's (n, m).
+  [[nodiscard]] bool fixed_size() const { return fixed_; }
 
  protected:
   void read_filter_params(Params& params) override;
@@ -44,6 +46,15 @@ class ExtendedEstimator final : public nonlinear::ModelEstimator {
   void describe_filter(Json& out) const override;
 
  private:
+  /// One cycle in Eigen storage of States x Channels (Eigen::Dynamic: any size up to the
+  /// capacity). Fixed sizes take Eigen's small-matrix code; both run the same operations.
+  template <int States, int Channels>
+  StepStatus cycle(bool first) noexcept;
+
+  // The sizes of the shipped models (plant.suspension with one gap channel) have their own
+  // instance of cycle(); any other (n, m) runs the dynamic one.
+  bool fixed_ = false;
+  bool compile_time_sizes_ = true;
   JacobianSource jacobian_ = JacobianSource::automatic;
   bool model_has_jacobian_ = false;
   bool used_analytic_ = false;

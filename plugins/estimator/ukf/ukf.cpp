@@ -12,6 +12,7 @@ void UnscentedEstimator::read_filter_params(Params& params) {
   beta_ = params.number("beta", 2.0);
   kappa_ = params.number("kappa", 0.0);
   redraw_ = params.flag("redraw_after_prediction", false);
+  compile_time_sizes_ = params.flag("compile_time_sizes", true);
 }
 
 Status UnscentedEstimator::prepare_filter(Params& params) {
@@ -24,31 +25,66 @@ Status UnscentedEstimator::prepare_filter(Params& params) {
                "L + kappa must be > 0 (L = " + std::to_string(n) + "), got kappa = " + number_text(kappa_));
   if (!params.ok()) return Status::error("invalid parameters");
   weights_ = ukf::Weights::make(n, alpha_, beta_, kappa_);
-  core_.configure(n, static_cast<int>(m_), weights_, ukf::Sums::about_centre, redraw_);
-  core_.set(x0_, P0_);
+  fixed_ = compile_time_sizes_ && n_ == 3 && m_ == 1;
+  if (fixed_) {
+    prepare(suspension_);
+  } else {
+    prepare(any_);
+  }
   return Status::ok();
 }
 
-void UnscentedEstimator::reset_filter() noexcept { core_.set(x_, P_); }
+template <class S>
+void UnscentedEstimator::prepare(S& sized) {
+  sized.core.configure(static_cast<int>(n_), static_cast<int>(m_), weights_, ukf::Sums::about_centre, redraw_);
+  sized.core.set(x0_, P0_);
+  sized.Q = Q_;
+  sized.R = R_;
+  sized.y.setZero(static_cast<Eigen::Index>(m_));
+}
+
+void UnscentedEstimator::reset_filter() noexcept {
+  if (fixed_) {
+    suspension_.core.set(x_, P_);
+  } else {
+    any_.core.set(x_, P_);
+  }
+}
 
 StepStatus UnscentedEstimator::filter_cycle(bool first) noexcept {
-  if (!core_.draw()) {
-    core_.set(x_, P_);
+  return fixed_ ? cycle(suspension_, first) : cycle(any_, first);
+}
+
+template <class S>
+StepStatus UnscentedEstimator::cycle(S& sized, bool first) noexcept {
+  auto& core = sized.core;
+  if (!core.draw()) {
+    core.set(x_, P_);
     return fault("UKF: (L + lambda) P is not positive definite (Cholesky failed)");
   }
-  if (!first && !core_.predict([this](const double* x, double* next) { propagate(x, next); }, Q_)) {
-    core_.set(x_, P_);
+  if (!first && !core.predict([this](const double* x, double* next) { propagate(x, next); }, sized.Q)) {
+    core.set(x_, P_);
     return fault("UKF: the predicted state or covariance is not finite");
   }
-  if (!core_.update([this](const double* x, double* y) { measure(x, y); }, y_, R_)) {
-    core_.set(x_, P_);
+  sized.y = y_;
+  if (!core.update([this](const double* x, double* y) { measure(x, y); }, sized.y, sized.R)) {
+    core.set(x_, P_);
     return fault("UKF: P_yy not positive definite, or the updated state is not finite");
   }
-  x_ = core_.x();
-  P_ = core_.P();
-  innovation_ = core_.innovation();
-  innovation_variance_ = core_.innovation_variance();
+  x_ = core.x();
+  P_ = core.P();
+  innovation_ = core.innovation();
+  innovation_variance_ = core.innovation_variance();
   return StepStatus::ok;
+}
+
+const nonlinear::GainMatrix& UnscentedEstimator::gain() const {
+  if (fixed_) {
+    gain_copy_ = suspension_.core.gain();
+  } else {
+    gain_copy_ = any_.core.gain();
+  }
+  return gain_copy_;
 }
 
 void UnscentedEstimator::describe_filter(Json& out) const {
@@ -66,6 +102,7 @@ void UnscentedEstimator::describe_filter(Json& out) const {
   out["square_root"] = "lower Cholesky factor of (L + lambda) P, column i";
   out["sums"] = "about the centre point chi_0 (deviation form)";
   out["redraw_after_prediction"] = redraw_;
+  out["algebra"] = fixed_ ? "sized at compile time (n = 3, m = 1)" : "generic (sizes chosen at configure)";
   out["measurement_update_points"] = redraw_ ? "redrawn around (x^-, P^-): Q_k reaches P_yy, P_xy"
                                              : "the propagated points (eq. 25, the paper's form)";
 }
@@ -80,6 +117,9 @@ constexpr ParamDoc kParams[] = {
     {"redraw_after_prediction", "bool", "false",
      "false: the propagated points go through h (eq. 25, the paper); true: redraw them around (x^-, P^-) "
      "so that Q_k enters P_yy and P_xy"},
+    {"compile_time_sizes", "bool", "true",
+     "true: a model with n = 3 states and m = 1 channel (plant.suspension with a gap) runs algebra sized at compile "
+     "time, same results, faster; false: the generic code every size runs (for comparison)"},
 };
 
 constexpr PortSpec kPorts[] = {LODE_MODEL_ESTIMATOR_PORT_DOCS};

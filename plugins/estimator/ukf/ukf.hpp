@@ -50,6 +50,11 @@ namespace ukf {
 
 inline constexpr int kMaxPoints = 2 * nonlinear::kMaxStates + 1;
 
+/// Eigen storage of R x C (either Eigen::Dynamic) holding at most MaxR x MaxC; a single row is
+/// stored row-major, as Eigen requires of a fixed row vector.
+template <typename Scalar, int R, int C, int MaxR, int MaxC>
+using Storage = Eigen::Matrix<Scalar, R, C, (R == 1 && C != 1) ? Eigen::RowMajor : Eigen::ColMajor, MaxR, MaxC>;
+
 /// The weights of eq. 21 for L states.
 struct Weights {
   int states = 0;
@@ -94,17 +99,25 @@ enum class Sums { about_centre, raw };
 /// evaluated at double(chi_0) + double(d_i) and the propagated deviation f(chi_i) - f(chi_0)
 /// formed in double before it is stored. raw is the paper's literal form (absolute points,
 /// sums of W_i chi_i); with Scalar = double the two agree to rounding.
-template <typename Scalar>
+///
+/// States and Channels: the sizes at compile time, or Eigen::Dynamic (any size up to
+/// kMaxStates x kMaxChannels, chosen in configure()). Fixed sizes take Eigen's small-matrix
+/// code (unrolled products, no size checks, no memmove of capacity-12 storage); both run the
+/// same operations in the same order, so a fixed instance gives the dynamic one's results.
+template <typename Scalar, int States = Eigen::Dynamic, int Channels = Eigen::Dynamic>
 class UnscentedCore {
+  static constexpr int kN = States == Eigen::Dynamic ? nonlinear::kMaxStates : States;
+  static constexpr int kM = Channels == Eigen::Dynamic ? nonlinear::kMaxChannels : Channels;
+  static constexpr int kPoints = States == Eigen::Dynamic ? Eigen::Dynamic : 2 * States + 1;
+
  public:
-  using Vector = Eigen::Matrix<Scalar, Eigen::Dynamic, 1, 0, nonlinear::kMaxStates, 1>;
-  using Matrix = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, 0, nonlinear::kMaxStates, nonlinear::kMaxStates>;
-  using Points = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, 0, nonlinear::kMaxStates, kMaxPoints>;
-  using MVector = Eigen::Matrix<Scalar, Eigen::Dynamic, 1, 0, nonlinear::kMaxChannels, 1>;
-  using MMatrix =
-      Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, 0, nonlinear::kMaxChannels, nonlinear::kMaxChannels>;
-  using MPoints = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, 0, nonlinear::kMaxChannels, kMaxPoints>;
-  using Gain = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, 0, nonlinear::kMaxStates, nonlinear::kMaxChannels>;
+  using Vector = Storage<Scalar, States, 1, kN, 1>;
+  using Matrix = Storage<Scalar, States, States, kN, kN>;
+  using Points = Storage<Scalar, States, kPoints, kN, 2 * kN + 1>;
+  using MVector = Storage<Scalar, Channels, 1, kM, 1>;
+  using MMatrix = Storage<Scalar, Channels, Channels, kM, kM>;
+  using MPoints = Storage<Scalar, Channels, kPoints, kM, 2 * kN + 1>;
+  using Gain = Storage<Scalar, States, Channels, kN, kM>;
 
   /// `redraw`: draw the points again around (x^-, P^-) after the prediction, so that the
   /// measurement update sees Q; false is the paper's eq. 25 (the propagated points go through h
@@ -124,6 +137,7 @@ class UnscentedCore {
     P_.setIdentity(n_, n_);
     centre_.setZero(n_);
     chi_.setZero(n_, points_);
+    factor_.setZero(n_, n_);
     y_centre_.setZero(m_);
     upsilon_.setZero(m_, points_);
     innovation_.setZero(m_);
@@ -132,47 +146,67 @@ class UnscentedCore {
     gain_.setZero(n_, m_);
   }
 
-  void set(const Vector& x, const Matrix& P) noexcept {
+  /// x and P: any Eigen storage of the configured sizes (e.g. the block's capacity-12 ones).
+  template <class X, class Cov>
+  void set(const X& x, const Cov& P) noexcept {
     x_ = x;
     P_ = P;
   }
 
   /// eq. 20: points around (x, P). False if (L + lambda) P is not positive definite.
   bool draw() noexcept {
-    llt_.compute(spread_ * P_);
-    if (llt_.info() != Eigen::Success) return false;
-    const Matrix S = llt_.matrixL();
+    if constexpr (States == 3) {
+      if (!cholesky_3x3(spread_ * P_, factor_)) return false;
+    } else {
+      llt_.compute(spread_ * P_);
+      if (llt_.info() != Eigen::Success) return false;
+      factor_ = llt_.matrixLLT();
+    }
+    const Matrix& S = factor_;  // L in the lower triangle (its upper part is not read)
     centre_ = x_;
     chi_.col(0).setZero();
-    for (int i = 0; i < n_; ++i) {
-      chi_.col(1 + i) = S.col(i);
-      chi_.col(1 + n_ + i) = -S.col(i);
+    for (int i = 0; i < n(); ++i) {
+      for (int j = 0; j < i; ++j) {
+        chi_(j, 1 + i) = Scalar(0);
+        chi_(j, 1 + n() + i) = -Scalar(0);  // as -S.col(i) of the zero-filled factor
+      }
+      for (int j = i; j < n(); ++j) {
+        chi_(j, 1 + i) = S(j, i);
+        chi_(j, 1 + n() + i) = -S(j, i);
+      }
     }
     if (sums_ == Sums::raw) {  // absolute points
-      for (int i = 0; i < points_; ++i) chi_.col(i) += x_;
+      for (int i = 0; i < points(); ++i) chi_.col(i) += x_;
+      return chi_.allFinite();
     }
-    return chi_.allFinite();
+    // The deviations are +-L (and zeros): finite exactly when the factor's lower triangle is.
+    for (int i = 0; i < n(); ++i) {
+      for (int j = i; j < n(); ++j) {
+        if (!std::isfinite(S(j, i))) return false;
+      }
+    }
+    return true;
   }
 
   /// eq. 22-24: push the points through f and form x^-, P^- (+ Q). The state is committed
   /// only if finite; returns false otherwise.
-  template <class F>
-  bool predict(F&& f, const Matrix& Q) noexcept {
-    std::array<double, nonlinear::kMaxStates> x{}, base{}, next{};
+  template <class F, class Cov>
+  bool predict(F&& f, const Cov& Q) noexcept {
+    std::array<double, kN> x, base, next;  // the first n_ of each are written before they are read
     if (sums_ == Sums::about_centre) {
-      for (int j = 0; j < n_; ++j) x[j] = static_cast<double>(centre_(j));
+      for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(centre_(j));
       f(x.data(), base.data());
-      for (int i = 1; i < points_; ++i) {
-        for (int j = 0; j < n_; ++j) x[j] = static_cast<double>(centre_(j)) + static_cast<double>(chi_(j, i));
+      for (int i = 1; i < points(); ++i) {
+        for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(centre_(j)) + static_cast<double>(chi_(j, i));
         f(x.data(), next.data());
-        for (int j = 0; j < n_; ++j) chi_(j, i) = static_cast<Scalar>(next[j] - base[j]);
+        for (int j = 0; j < n(); ++j) chi_(j, i) = static_cast<Scalar>(next[j] - base[j]);
       }
-      for (int j = 0; j < n_; ++j) centre_(j) = static_cast<Scalar>(base[j]);
+      for (int j = 0; j < n(); ++j) centre_(j) = static_cast<Scalar>(base[j]);
     } else {
-      for (int i = 0; i < points_; ++i) {
-        for (int j = 0; j < n_; ++j) x[j] = static_cast<double>(chi_(j, i));
+      for (int i = 0; i < points(); ++i) {
+        for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(chi_(j, i));
         f(x.data(), next.data());
-        for (int j = 0; j < n_; ++j) chi_(j, i) = static_cast<Scalar>(next[j]);
+        for (int j = 0; j < n(); ++j) chi_(j, i) = static_cast<Scalar>(next[j]);
       }
     }
     Vector mean;
@@ -187,42 +221,43 @@ class UnscentedCore {
   }
 
   /// eq. 25-31 with the current points (propagated, or drawn when there was no prediction).
-  template <class H>
-  bool update(H&& h, const MVector& y, const MMatrix& R) noexcept {
-    std::array<double, nonlinear::kMaxStates> x{};
-    std::array<double, nonlinear::kMaxChannels> base{}, out{};
-    MVector y_hat(m_);
-    Vector x_dev(n_);   // x^- relative to the centre point (about_centre) or x^- itself (raw)
-    MVector y_dev(m_);  // y^ relative to Y_0 (about_centre)
+  template <class H, class Y, class Noise>
+  bool update(H&& h, const Y& y, const Noise& R) noexcept {
+    std::array<double, kN> x;  // the first n_ (m_) of each are written before they are read
+    std::array<double, kM> base, out;
+    MVector y_hat;
+    Vector x_dev;  // x^- relative to the centre point (about_centre) or x^- itself (raw)
+    MVector y_dev;  // y^ relative to Y_0 (about_centre)
+    y_hat.resize(m_);
+    x_dev.setZero(n_);
+    y_dev.setZero(m_);
     if (sums_ == Sums::about_centre) {
-      for (int j = 0; j < n_; ++j) x[j] = static_cast<double>(centre_(j));
+      for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(centre_(j));
       h(x.data(), base.data());
       upsilon_.col(0).setZero();
-      for (int i = 1; i < points_; ++i) {
-        for (int j = 0; j < n_; ++j) x[j] = static_cast<double>(centre_(j)) + static_cast<double>(chi_(j, i));
+      for (int i = 1; i < points(); ++i) {
+        for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(centre_(j)) + static_cast<double>(chi_(j, i));
         h(x.data(), out.data());
-        for (int c = 0; c < m_; ++c) upsilon_(c, i) = static_cast<Scalar>(out[c] - base[c]);
+        for (int c = 0; c < m(); ++c) upsilon_(c, i) = static_cast<Scalar>(out[c] - base[c]);
       }
-      x_dev.setZero();
-      y_dev.setZero();
-      for (int i = 1; i < points_; ++i) {
+      for (int i = 1; i < points(); ++i) {
         x_dev += wi_ * chi_.col(i);
         y_dev += wi_ * upsilon_.col(i);
       }
-      for (int c = 0; c < m_; ++c) y_centre_(c) = static_cast<Scalar>(base[c]);
+      for (int c = 0; c < m(); ++c) y_centre_(c) = static_cast<Scalar>(base[c]);
       y_hat = y_centre_ + y_dev;
     } else {
-      for (int i = 0; i < points_; ++i) {
-        for (int j = 0; j < n_; ++j) x[j] = static_cast<double>(chi_(j, i));
+      for (int i = 0; i < points(); ++i) {
+        for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(chi_(j, i));
         h(x.data(), out.data());
-        for (int c = 0; c < m_; ++c) upsilon_(c, i) = static_cast<Scalar>(out[c]);
+        for (int c = 0; c < m(); ++c) upsilon_(c, i) = static_cast<Scalar>(out[c]);
       }
       y_hat = wm0_ * upsilon_.col(0);
-      for (int i = 1; i < points_; ++i) y_hat += wi_ * upsilon_.col(i);
+      for (int i = 1; i < points(); ++i) y_hat += wi_ * upsilon_.col(i);
     }
     MMatrix Pyy = R;
     Gain Pxy = Gain::Zero(n_, m_);
-    for (int i = 0; i < points_; ++i) {
+    for (int i = 0; i < points(); ++i) {
       const Scalar w = i == 0 ? wc0_ : wi_;
       // chi_i - x^- and Y_i - y^, from deviations (about_centre) or absolute values (raw).
       const Vector dx = sums_ == Sums::about_centre ? Vector(chi_.col(i) - x_dev) : Vector(chi_.col(i) - x_);
@@ -231,10 +266,19 @@ class UnscentedCore {
       Pyy.noalias() += w * dy * dy.transpose();
       Pxy.noalias() += w * dx * dy.transpose();
     }
-    Pyy = (Scalar(0.5) * (Pyy + Pyy.transpose())).eval();
-    Eigen::LLT<MMatrix> pyy_llt(Pyy);
-    if (pyy_llt.info() != Eigen::Success) return false;
-    const Gain K = pyy_llt.solve(Pxy.transpose()).transpose();  // eq. 29
+    Gain K;  // eq. 29
+    if constexpr (Channels == 1) {
+      // P_yy is a number (symmetric as it is): its Cholesky factor is sqrt(P_yy) and the two
+      // triangular solves scale by its reciprocal, as Eigen's LLT solve does.
+      if (!(Pyy(0, 0) > Scalar(0)) && !std::isnan(Pyy(0, 0))) return false;
+      const Scalar inverse_root = Scalar(1) / std::sqrt(Pyy(0, 0));
+      K = (Pxy * inverse_root) * inverse_root;
+    } else {
+      Pyy = (Scalar(0.5) * (Pyy + Pyy.transpose())).eval();
+      Eigen::LLT<MMatrix> pyy_llt(Pyy);
+      if (pyy_llt.info() != Eigen::Success) return false;
+      K = pyy_llt.solve(Pxy.transpose()).transpose();
+    }
     MVector innovation = y - y_hat;
     if (sums_ == Sums::about_centre) innovation = (y - y_centre_) - y_dev;  // no cancellation of |y|
     Vector x_new = x_ + K * innovation;                                      // eq. 30
@@ -260,27 +304,87 @@ class UnscentedCore {
   [[nodiscard]] const Gain& gain() const noexcept { return gain_; }
 
  private:
+  /// The lower Cholesky factor of a 3 x 3 A into L's lower triangle, with the operations of
+  /// Eigen's LLT in its order (so the same bits) without its run-time-sized blocks. False
+  /// where Eigen's fails: a pivot <= 0 (a NaN pivot goes on, as there, and shows as NaN in L).
+  template <class A>
+  static bool cholesky_3x3(const A& a, Matrix& L) noexcept {
+    Scalar x = a(0, 0);
+    if (x <= Scalar(0)) return false;
+    const Scalar l00 = std::sqrt(x);
+    const Scalar l10 = a(1, 0) / l00;
+    const Scalar l20 = a(2, 0) / l00;
+    x = a(1, 1) - l10 * l10;
+    if (x <= Scalar(0)) return false;
+    const Scalar l11 = std::sqrt(x);
+    const Scalar l21 = (a(2, 1) - l20 * l10) / l11;
+    x = a(2, 2) - (l20 * l20 + l21 * l21);
+    if (x <= Scalar(0)) return false;
+    L(0, 0) = l00;
+    L(1, 0) = l10;
+    L(2, 0) = l20;
+    L(1, 1) = l11;
+    L(2, 1) = l21;
+    L(2, 2) = std::sqrt(x);
+    return true;
+  }
+
+  /// cov += w d d' (d: States numbers), element by element as Eigen forms it: (w d_j) d_k.
+  static void rank_one_update(Matrix& cov, Scalar w, const Scalar* d) noexcept {
+#pragma GCC unroll 12
+    for (int k = 0; k < States; ++k) {
+#pragma GCC unroll 12
+      for (int j = 0; j < States; ++j) cov(j, k) += (w * d[j]) * d[k];
+    }
+  }
+
   /// Weighted mean and covariance of the points (without Q).
   void moments(Vector& mean, Matrix& cov) const noexcept {
     cov.setZero(n_, n_);
+    if constexpr (States != Eigen::Dynamic) {
+      if (sums_ == Sums::about_centre) {
+        // The generic branch below written out for a size known at compile time, the same
+        // operations element by element: dbar_j += Wi d_ij, then cov += (w d_j) d_k.
+        std::array<Scalar, States> dbar{};
+        for (int i = 1; i < points(); ++i) {
+#pragma GCC unroll 12
+          for (int j = 0; j < States; ++j) dbar[j] += wi_ * chi_(j, i);
+        }
+#pragma GCC unroll 12
+        for (int j = 0; j < States; ++j) mean(j) = centre_(j) + dbar[j];
+        rank_one_update(cov, wc0_, dbar.data());
+        for (int i = 1; i < points(); ++i) {
+          std::array<Scalar, States> d;
+#pragma GCC unroll 12
+          for (int j = 0; j < States; ++j) d[j] = chi_(j, i) - dbar[j];
+          rank_one_update(cov, wi_, d.data());
+        }
+        return;
+      }
+    }
     if (sums_ == Sums::about_centre) {
       Vector dbar = Vector::Zero(n_);  // x^- - chi_0 = sum_{i>=1} Wi d_i (sum of W^m = 1)
-      for (int i = 1; i < points_; ++i) dbar += wi_ * chi_.col(i);
+      for (int i = 1; i < points(); ++i) dbar += wi_ * chi_.col(i);
       mean = centre_ + dbar;
       cov.noalias() += wc0_ * dbar * dbar.transpose();
-      for (int i = 1; i < points_; ++i) {
+      for (int i = 1; i < points(); ++i) {
         const Vector d = chi_.col(i) - dbar;
         cov.noalias() += wi_ * d * d.transpose();
       }
       return;
     }
     mean = wm0_ * chi_.col(0);
-    for (int i = 1; i < points_; ++i) mean += wi_ * chi_.col(i);
-    for (int i = 0; i < points_; ++i) {
+    for (int i = 1; i < points(); ++i) mean += wi_ * chi_.col(i);
+    for (int i = 0; i < points(); ++i) {
       const Vector d = chi_.col(i) - mean;
       cov.noalias() += (i == 0 ? wc0_ : wi_) * d * d.transpose();
     }
   }
+
+  // The sizes, as constants when they are known at compile time (the loops then unroll).
+  [[nodiscard]] int n() const noexcept { return States == Eigen::Dynamic ? n_ : States; }
+  [[nodiscard]] int m() const noexcept { return Channels == Eigen::Dynamic ? m_ : Channels; }
+  [[nodiscard]] int points() const noexcept { return States == Eigen::Dynamic ? points_ : 2 * States + 1; }
 
   int n_ = 0;
   int m_ = 0;
@@ -299,6 +403,7 @@ class UnscentedCore {
   MVector y_hat_;
   Gain gain_;
   Eigen::LLT<Matrix> llt_;
+  Matrix factor_;  ///< the lower Cholesky factor of (L + lambda) P
 };
 
 }  // namespace ukf
@@ -306,7 +411,10 @@ class UnscentedCore {
 class UnscentedEstimator final : public nonlinear::ModelEstimator {
  public:
   [[nodiscard]] const ukf::Weights& weights() const { return weights_; }
-  [[nodiscard]] const nonlinear::GainMatrix& gain() const { return core_.gain(); }
+  /// K of the last update (a copy off the RT thread).
+  [[nodiscard]] const nonlinear::GainMatrix& gain() const;
+  /// Whether configure() chose a core sized at compile time for the model's (n, m).
+  [[nodiscard]] bool fixed_size() const { return fixed_; }
 
  protected:
   void read_filter_params(Params& params) override;
@@ -320,8 +428,30 @@ class UnscentedEstimator final : public nonlinear::ModelEstimator {
   double beta_ = 2.0;
   double kappa_ = 0.0;
   bool redraw_ = false;
+  bool compile_time_sizes_ = true;
   ukf::Weights weights_;
-  ukf::UnscentedCore<double> core_;
+
+  /// A core with its constant operands (Q_k, R) stored in its own sizes, so that step()
+  /// mixes no capacity-12 storage into the small products.
+  template <int States, int Channels>
+  struct Sized {
+    using Core = ukf::UnscentedCore<double, States, Channels>;
+    Core core;
+    typename Core::Matrix Q;
+    typename Core::MMatrix R;
+    typename Core::MVector y;
+  };
+  template <class S>
+  void prepare(S& sized);
+  template <class S>
+  StepStatus cycle(S& sized, bool first) noexcept;
+
+  // The sizes of the shipped models (plant.suspension with one gap channel) have their own
+  // core; any other (n, m) runs the dynamic one.
+  bool fixed_ = false;
+  Sized<3, 1> suspension_;
+  Sized<Eigen::Dynamic, Eigen::Dynamic> any_;
+  mutable nonlinear::GainMatrix gain_copy_;
 };
 
 }  // namespace lode::plugins

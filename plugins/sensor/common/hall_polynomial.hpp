@@ -100,10 +100,14 @@ struct Conversion {
   /// Newton step leaves the bracket); M_H must be strictly decreasing on the range, which
   /// validate_monotonic() checks at configure time.
   [[nodiscard]] double compensated_for_distance(double distance) const noexcept {
+    return compensated_for_distance(distance, nearest_mm(), farthest_mm());
+  }
+  /// The same with nearest_mm() and farthest_mm() given (a model that keeps them).
+  [[nodiscard]] double compensated_for_distance(double distance, double nearest, double farthest) const noexcept {
     double lo = compensated_min_v;  // M_H(lo) = farthest
     double hi = compensated_max_v;  // M_H(hi) = nearest
-    if (!(distance < farthest_mm())) return lo;
-    if (!(distance > nearest_mm())) return hi;
+    if (!(distance < farthest)) return lo;
+    if (!(distance > nearest)) return hi;
     double c = 0.5 * (lo + hi);
     for (int iteration = 0; iteration < 100; ++iteration) {
       const double residual = distance_mm.value(c) - distance;

@@ -24,6 +24,8 @@ Status HallGap::configure(Params& params) {
 void HallGap::apply(const hall::Conversion& conversion, Output output, const std::string& channel) {
   conversion_ = conversion;
   output_ = output;
+  nearest_mm_ = conversion_.nearest_mm();
+  farthest_mm_ = conversion_.farthest_mm();
   if (output_ == Output::hall_voltage) {
     declare_measurement_elements({{"gap", "m"}, {"coil_voltage", "V"}}, {{channel, "V"}});
   } else {
@@ -35,23 +37,23 @@ void HallGap::evaluate(const double* state, double* y) const noexcept {
   const double distance_mm = 1e3 * state[kGap];
   if (output_ == Output::gap) {
     // d_hall = d within what eq. 14 can report (C_H clamped to its range).
-    y[0] = 1e-3 * std::clamp(distance_mm, conversion_.nearest_mm(), conversion_.farthest_mm());
+    y[0] = 1e-3 * std::clamp(distance_mm, nearest_mm_, farthest_mm_);
     return;
   }
-  const double c_h = conversion_.compensated_for_distance(distance_mm);
+  const double c_h = conversion_.compensated_for_distance(distance_mm, nearest_mm_, farthest_mm_);
   y[0] = c_h + conversion_.coil_v.value(state[kCoilVoltage]);  // eq. 15 solved for v_hall
 }
 
 void HallGap::jacobian(const double* state, double* y, double* H) const noexcept {
   evaluate(state, y);
   const double distance_mm = 1e3 * state[kGap];
-  const bool inside = distance_mm > conversion_.nearest_mm() && distance_mm < conversion_.farthest_mm();
+  const bool inside = distance_mm > nearest_mm_ && distance_mm < farthest_mm_;
   if (output_ == Output::gap) {
     H[kGap] = inside ? 1.0 : 0.0;
     return;
   }
   // dC_H/dgap = 1000 / M_H'(C_H) (inverse function rule; M_H' < 0 on the range).
-  const double c_h = conversion_.compensated_for_distance(distance_mm);
+  const double c_h = conversion_.compensated_for_distance(distance_mm, nearest_mm_, farthest_mm_);
   H[kGap] = inside ? 1e3 / conversion_.distance_mm.slope(c_h) : 0.0;
   H[kCoilVoltage] = conversion_.coil_v.slope(state[kCoilVoltage]);
 }

@@ -60,6 +60,10 @@ class HallGap final : public MeasurementModel {
  private:
   hall::Conversion conversion_ = hall::Conversion::paper();
   Output output_ = Output::hall_voltage;
+  // The conversion's distance range [mm] (two degree-5 polynomials), taken once in apply():
+  // an estimator evaluates the model at every sigma point of every step.
+  double nearest_mm_ = 0.0;
+  double farthest_mm_ = 0.0;
 };
 
 }  // namespace lode::plugins

@@ -96,6 +96,11 @@ Status ModelEstimator::configure(ConfigureContext& ctx) {
     measurement_state_.push_back(source);
   }
 
+  measurement_reads_leading_states_ = true;
+  for (std::size_t j = 0; j < measurement_state_.size(); ++j) {
+    if (measurement_state_[j].from_input || measurement_state_[j].index != j) measurement_reads_leading_states_ = false;
+  }
+
   // Inputs, by name.
   std::string why;
   if (const Elements* source = ctx.input_source("measurement"); source == nullptr) {
@@ -260,51 +265,13 @@ bool ModelEstimator::innovation(double* residual, double* variance) const noexce
 }
 
 void ModelEstimator::measure(const double* x, double* y) const noexcept {
-  std::array<double, kMaxStates + kMaxInputs> model_state{};
+  if (measurement_reads_leading_states_) {  // h's state is x's first elements: no copy
+    measurement_->evaluate(x, y);
+    return;
+  }
+  std::array<double, kMaxStates + kMaxInputs> model_state;  // the first measurement_state_.size() are set
   gather_measurement_state(x, u_.data(), model_state.data());
   measurement_->evaluate(model_state.data(), y);
-}
-
-void ModelEstimator::measure_jacobian(const double* x, const double* u, double* y,
-                                      ObservationMatrix& H) const noexcept {
-  std::array<double, kMaxStates + kMaxInputs> model_state{};
-  std::array<double, kMaxChannels*(kMaxStates + kMaxInputs)> row_major{};
-  gather_measurement_state(x, u, model_state.data());
-  measurement_->jacobian(model_state.data(), y, row_major.data());
-  H.setZero(static_cast<Eigen::Index>(m_), static_cast<Eigen::Index>(n_));
-  const std::size_t width = measurement_state_.size();
-  for (std::size_t c = 0; c < m_; ++c)
-    for (std::size_t j = 0; j < width; ++j)
-      if (!measurement_state_[j].from_input)
-        H(static_cast<Eigen::Index>(c), static_cast<Eigen::Index>(measurement_state_[j].index)) += row_major[c * width + j];
-}
-
-bool ModelEstimator::analytic_process_jacobian(const double* x, const double* u, StateMatrix& F) const noexcept {
-  std::array<double, kMaxStates * kMaxStates> row_major{};
-  if (!process_->process_jacobian(dt_, x, u, row_major.data())) return false;
-  F.resize(static_cast<Eigen::Index>(n_), static_cast<Eigen::Index>(n_));
-  for (std::size_t i = 0; i < n_; ++i)
-    for (std::size_t j = 0; j < n_; ++j)
-      F(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = row_major[i * n_ + j];
-  return true;
-}
-
-void ModelEstimator::numerical_process_jacobian(const double* x, const double* u, const StateVector& scale,
-                                                StateMatrix& F) const noexcept {
-  const double step = std::cbrt(std::numeric_limits<double>::epsilon());
-  std::array<double, kMaxStates> plus{}, minus{}, f_plus{}, f_minus{};
-  F.resize(static_cast<Eigen::Index>(n_), static_cast<Eigen::Index>(n_));
-  for (std::size_t j = 0; j < n_; ++j) {
-    const double h = step * std::max({std::abs(x[j]), scale(static_cast<Eigen::Index>(j)), 1e-12});
-    for (std::size_t i = 0; i < n_; ++i) plus[i] = minus[i] = x[i];
-    plus[j] += h;
-    minus[j] -= h;
-    const double width = plus[j] - minus[j];  // the representable step
-    propagate(plus.data(), u, f_plus.data());
-    propagate(minus.data(), u, f_minus.data());
-    for (std::size_t i = 0; i < n_; ++i)
-      F(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = (f_plus[i] - f_minus[i]) / width;
-  }
 }
 
 void ModelEstimator::gather_measurement_state(const double* x, const double* u, double* model_state) const noexcept {

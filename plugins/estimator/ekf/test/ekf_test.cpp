@@ -235,4 +235,43 @@ TEST(EkfBlock, UnknownJacobianChoiceAndMissingInputAreErrors) {
 constexpr const char* kStatePlugin = "estimator.ekf";
 #include "estimator/testing/model_estimator_state_tests.inc"
 
+TEST(EkfBlock, SizedAlgebraGivesTheGenericResultsBitForBit) {
+  // The suspension (n = 3, m = 1) runs algebra sized at compile time; compile_time_sizes: false
+  // runs the generic one. Same operations in the same order: the same bits, cycle by cycle,
+  // and neither allocates in step().
+  LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
+  LODE_REQUIRE_ALLOCATION_COUNTING();
+  const Benchmark bm = make_benchmark(4000);
+  lode::testing::BlockHarness sized("estimator.ekf", block(bm), 2000.0, kModels);
+  lode::testing::BlockHarness generic("estimator.ekf", block(bm, "compile_time_sizes: false\n"), 2000.0, kModels);
+  for (auto* h : {&sized, &generic}) {
+    h->feed("measurement", {{"gap", "m"}});
+    h->feed("input", {{"gap", "m"}, {"coil_voltage", "V"}});
+    ASSERT_TRUE(started(*h));
+  }
+  EXPECT_TRUE(dynamic_cast<lode::plugins::ExtendedEstimator&>(sized.block()).fixed_size());
+  EXPECT_FALSE(dynamic_cast<lode::plugins::ExtendedEstimator&>(generic.block()).fixed_size());
+  EXPECT_EQ(sized.describe().find("filter")->find("algebra")->as_string(), "sized at compile time (n = 3, m = 1)");
+  std::size_t allocations = 0;
+  for (std::size_t k = 0; k < bm.y.size(); ++k) {
+    for (auto* h : {&sized, &generic}) {
+      h->input("measurement")[0] = bm.y[k];
+      h->input("input")[1] = bm.u[k];
+      allocations += lode::estimator_testing::allocations_during(
+          [&] { ASSERT_EQ(h->step(), lode::StepStatus::ok) << h->block().fault_reason(); });
+    }
+    for (const char* port : {"state", "std", "innovation"}) {
+      const auto a = sized.output(port);
+      const auto g = generic.output(port);
+      for (std::size_t i = 0; i < a.size(); ++i) {
+        ASSERT_EQ(a[i], g[i]) << port << "[" << i << "] at cycle " << k << " differs by " << a[i] - g[i];
+      }
+    }
+  }
+  EXPECT_EQ(allocations, 0u) << "step() allocated";
+  const auto& P = dynamic_cast<lode::plugins::ExtendedEstimator&>(sized.block()).covariance();
+  const auto& P_generic = dynamic_cast<lode::plugins::ExtendedEstimator&>(generic.block()).covariance();
+  EXPECT_EQ(P, P_generic);
+}
+
 }  // namespace

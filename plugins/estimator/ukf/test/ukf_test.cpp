@@ -327,7 +327,8 @@ TEST(UkfCore, RefusesACovarianceThatIsNotPositiveDefinite) {
 const char* const kModels =
     "plant: {plugin: plant.suspension, mass_kg: 6.0e-3, force_b_n_m2_per_a: 4.85e-5}\n"
     "hall_distance: {plugin: sensor.hall_gap, output: gap}\n"
-    "hall_volts: {plugin: sensor.hall_gap}\n";
+    "hall_volts: {plugin: sensor.hall_gap}\n"
+    "hall_strong_coil: {plugin: sensor.hall_gap, coil_polynomial_v: [0.0, 0.1, 2.544]}\n";
 
 const std::string kBlock = suspension_estimator(kHallDistanceNoise, 0.9);
 
@@ -425,6 +426,33 @@ TEST(UkfBlock, EstimatesFromHallVoltagesThroughTheNonlinearModel) {
   EXPECT_LT(rms, 40e-6);
 }
 
+TEST(UkfBlock, TheHallModelTakesTheCoilVoltageFromTheInput) {
+  // h(gap, coil_voltage) with coil_voltage a process input, not a state: with 0.1 V per coil
+  // volt (the paper's is 9e-5) reading anything else for it (e.g. the velocity, the state at
+  // its position) would shift C_H by ~0.17 V, millimetres of gap.
+  LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
+  const Benchmark b = make_benchmark(3000);
+  lode::testing::BlockHarness h(
+      "estimator.ukf",
+      suspension_estimator(
+          "measurement: hall_strong_coil\nq: [5.6e-8, 1.7e-8, 7.71e-3]\nprocess_noise: per_second\nr: 4e-6\n",
+          b.truth[0][2]),
+      2000.0, kModels);
+  h.feed("measurement", {{"hall", "V"}});
+  h.feed("input", {{"gap", "m"}, {"coil_voltage", "V"}});
+  ASSERT_TRUE(started(h));
+  lode::plugins::hall::Conversion c = lode::plugins::hall::Conversion::paper();
+  c.coil_v = lode::plugins::hall::Polynomial::from({0.0, 0.1, 2.544});
+  double worst = 0.0;
+  for (std::size_t k = 0; k < b.y.size(); ++k) {
+    h.input("measurement")[0] = c.compensated_for_distance(b.truth[k][0] * 1e3) + c.coil_v.value(b.u[k]);
+    h.input("input")[1] = b.u[k];
+    ASSERT_EQ(h.step(), lode::StepStatus::ok) << h.block().fault_reason();
+    if (k >= 1000) worst = std::max(worst, std::abs(h.output("state")[0] - b.truth[k][0]));
+  }
+  EXPECT_LT(worst, 100e-6) << "gap error of a noiseless Hall reading";
+}
+
 TEST(UkfBlock, NonFiniteInputFaultsAndLeavesTheEstimate) {
   LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
   lode::testing::BlockHarness h("estimator.ukf", kBlock, 2000.0, kModels);
@@ -501,5 +529,41 @@ TEST(UkfBlock, StepDoesNotAllocate) {
 
 constexpr const char* kStatePlugin = "estimator.ukf";
 #include "estimator/testing/model_estimator_state_tests.inc"
+
+TEST(UkfBlock, SizedAlgebraGivesTheGenericResultsBitForBit) {
+  // The suspension (n = 3, m = 1) runs a core sized at compile time; compile_time_sizes: false
+  // runs the generic one. Same operations in the same order: the same bits, cycle by cycle,
+  // and neither allocates in step().
+  LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
+  LODE_REQUIRE_ALLOCATION_COUNTING();
+  const Benchmark b = make_benchmark(3000);
+  lode::testing::BlockHarness sized("estimator.ukf", kBlock, 2000.0, kModels);
+  lode::testing::BlockHarness generic("estimator.ukf", kBlock + "compile_time_sizes: false\n", 2000.0, kModels);
+  for (auto* h : {&sized, &generic}) {
+    feed_standard(*h);
+    ASSERT_TRUE(started(*h));
+  }
+  EXPECT_TRUE(dynamic_cast<lode::plugins::UnscentedEstimator&>(sized.block()).fixed_size());
+  EXPECT_FALSE(dynamic_cast<lode::plugins::UnscentedEstimator&>(generic.block()).fixed_size());
+  EXPECT_EQ(generic.describe().find("filter")->find("algebra")->as_string(), "generic (sizes chosen at configure)");
+  std::size_t allocations = 0;
+  for (std::size_t k = 0; k < b.y.size(); ++k) {
+    for (auto* h : {&sized, &generic}) {
+      h->input("measurement")[0] = b.y[k];
+      h->input("input")[0] = b.truth[k][0];
+      h->input("input")[1] = b.u[k];
+      allocations += lode::estimator_testing::allocations_during(
+          [&] { ASSERT_EQ(h->step(), lode::StepStatus::ok) << h->block().fault_reason(); });
+    }
+    for (const char* port : {"state", "std", "innovation"}) {
+      const auto a = sized.output(port);
+      const auto g = generic.output(port);
+      for (std::size_t i = 0; i < a.size(); ++i) {
+        ASSERT_EQ(a[i], g[i]) << port << "[" << i << "] at cycle " << k << " differs by " << a[i] - g[i];
+      }
+    }
+  }
+  EXPECT_EQ(allocations, 0u) << "step() allocated";
+}
 
 }  // namespace

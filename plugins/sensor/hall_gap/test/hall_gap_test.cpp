@@ -196,6 +196,33 @@ TEST(HallGapModel, GapOutputIsTheDirectDistance) {
   EXPECT_EQ(H, 0.0);
 }
 
+TEST(HallGapModel, ClampLimitsFollowTheConversionApplied) {
+  // The range ends are taken once per apply(): a model reconfigured with a narrower C_H
+  // range clamps and goes flat at the new ends, not at the ones it was constructed with.
+  hall::Conversion narrow = hall::Conversion::paper();
+  narrow.compensated_min_v = 0.1;  // farthest M_H(0.1) = 33.69 mm
+  narrow.compensated_max_v = 0.7;  // nearest M_H(0.7) = 17.65 mm
+  HallGap gap_model;
+  gap_model.apply(narrow, HallGap::Output::gap, "gap");
+  const double far = 0.040;
+  double y = 0.0;
+  double H = 1.0;
+  gap_model.jacobian(&far, &y, &H);
+  EXPECT_DOUBLE_EQ(y, 1e-3 * narrow.distance_mm.value(0.1)) << "clamped at the configured farthest distance";
+  EXPECT_EQ(H, 0.0);
+  const double near = 0.017;
+  gap_model.evaluate(&near, &y);
+  EXPECT_DOUBLE_EQ(y, 1e-3 * narrow.distance_mm.value(0.7)) << "clamped at the configured nearest distance";
+
+  HallGap volts_model;
+  volts_model.apply(narrow, HallGap::Output::hall_voltage, "hall");
+  std::array<double, 2> state{0.040, 1.0};
+  std::array<double, 2> slope{1.0, 1.0};
+  volts_model.jacobian(state.data(), &y, slope.data());
+  EXPECT_NEAR(y - narrow.coil_v.value(1.0), 0.1, 1e-15) << "C_H held at the configured minimum";
+  EXPECT_EQ(slope[0], 0.0);
+}
+
 TEST(HallGapModel, DescribeShowsTheCharacteristic) {
   const auto model_owner = configured(HallGap::Output::hall_voltage);
   const HallGap& model = *model_owner;

@@ -23,9 +23,12 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <array>
 #include <cstddef>
+#include <cmath>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -117,13 +120,67 @@ class ModelEstimator : public Block, public EstimatorState {
   void measure_jacobian(const double* x, double* y, ObservationMatrix& H) const noexcept {
     measure_jacobian(x, u_.data(), y, H);
   }
-  void measure_jacobian(const double* x, const double* u, double* y, ObservationMatrix& H) const noexcept;
+  void measure_jacobian(const double* x, const double* u, double* y, ObservationMatrix& H) const noexcept {
+    measure_jacobian_into(x, u, y, H);
+  }
+  /// The same into any m x n Eigen storage (e.g. one sized at compile time).
+  template <class Observation>
+  void measure_jacobian_into(const double* x, const double* u, double* y, Observation& H) const noexcept {
+    const std::size_t width = measurement_state_.size();
+    // Only the m x width entries the model writes are cleared, not the whole capacity.
+    std::array<double, kMaxStates + kMaxInputs> model_state;
+    std::array<double, kMaxChannels*(kMaxStates + kMaxInputs)> row_major;
+    std::fill_n(row_major.begin(), m_ * width, 0.0);
+    gather_measurement_state(x, u, model_state.data());
+    measurement_->jacobian(model_state.data(), y, row_major.data());
+    H.setZero(static_cast<Eigen::Index>(m_), static_cast<Eigen::Index>(n_));
+    for (std::size_t c = 0; c < m_; ++c)
+      for (std::size_t j = 0; j < width; ++j)
+        if (!measurement_state_[j].from_input)
+          H(static_cast<Eigen::Index>(c), static_cast<Eigen::Index>(measurement_state_[j].index)) +=
+              row_major[c * width + j];
+  }
   /// The model's analytic F = df/dx at (x, u), or false if it has none.
-  bool analytic_process_jacobian(const double* x, const double* u, StateMatrix& F) const noexcept;
+  bool analytic_process_jacobian(const double* x, const double* u, StateMatrix& F) const noexcept {
+    return analytic_process_jacobian_into(x, u, F);
+  }
+  /// The same into any n x n Eigen storage.
+  template <class Jacobian>
+  bool analytic_process_jacobian_into(const double* x, const double* u, Jacobian& F) const noexcept {
+    std::array<double, kMaxStates * kMaxStates> row_major;
+    std::fill_n(row_major.begin(), n_ * n_, 0.0);
+    if (!process_->process_jacobian(dt_, x, u, row_major.data())) return false;
+    F.resize(static_cast<Eigen::Index>(n_), static_cast<Eigen::Index>(n_));
+    for (std::size_t i = 0; i < n_; ++i)
+      for (std::size_t j = 0; j < n_; ++j)
+        F(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = row_major[i * n_ + j];
+    return true;
+  }
   /// Central differences: F(:, j) = (f(x + h e_j) - f(x - h e_j)) / 2h with
   /// h = eps^(1/3) max(|x_j|, scale_j) (scale_j: e.g. sqrt(P_jj)), truncation O(h^2).
   void numerical_process_jacobian(const double* x, const double* u, const StateVector& scale,
-                                  StateMatrix& F) const noexcept;
+                                  StateMatrix& F) const noexcept {
+    numerical_process_jacobian_into(x, u, scale, F);
+  }
+  /// The same into any n x n Eigen storage; scale any Eigen vector of n.
+  template <class Scale, class Jacobian>
+  void numerical_process_jacobian_into(const double* x, const double* u, const Scale& scale,
+                                       Jacobian& F) const noexcept {
+    const double step = std::cbrt(std::numeric_limits<double>::epsilon());
+    std::array<double, kMaxStates> plus, minus, f_plus, f_minus;  // the first n_ are written before read
+    F.resize(static_cast<Eigen::Index>(n_), static_cast<Eigen::Index>(n_));
+    for (std::size_t j = 0; j < n_; ++j) {
+      const double h = step * std::max({std::abs(x[j]), static_cast<double>(scale(static_cast<Eigen::Index>(j))), 1e-12});
+      for (std::size_t i = 0; i < n_; ++i) plus[i] = minus[i] = x[i];
+      plus[j] += h;
+      minus[j] -= h;
+      const double width = plus[j] - minus[j];  // the representable step
+      propagate(plus.data(), u, f_plus.data());
+      propagate(minus.data(), u, f_minus.data());
+      for (std::size_t i = 0; i < n_; ++i)
+        F(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = (f_plus[i] - f_minus[i]) / width;
+    }
+  }
 
   // Sizes and constants.
   std::size_t n_ = 0;   ///< states
@@ -156,6 +213,8 @@ class ModelEstimator : public Block, public EstimatorState {
   NoiseBasis noise_basis_ = NoiseBasis::per_step;
   Eigen::MatrixXd q_configured_;
   std::vector<ElementSource> measurement_state_;
+  /// h depends on the process state's first elements in their order (e.g. the gap alone).
+  bool measurement_reads_leading_states_ = false;
   std::vector<std::size_t> measurement_index_;  ///< channel c is element measurement_index_[c] of the input
   std::vector<std::size_t> input_index_;
   bool first_ = true;
