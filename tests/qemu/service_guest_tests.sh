@@ -37,6 +37,7 @@ say "$(grep VmLck /proc/"$pid"/status)"
 systemctl show -p StatusText --value lode@kawato_vme | prefixed status
 sleep 4  # past the YAML's duration_s
 say "ACTIVE_AFTER_4S=$(systemctl is-active lode@kawato_vme)"
+systemctl show -p StatusText --value lode@kawato_vme | prefixed status_before_stop
 
 # 3. systemctl stop: outputs at their safe values, the summary in the journal.
 systemctl stop lode@kawato_vme
@@ -55,7 +56,9 @@ start_emulator kawato_freeze
 systemctl start lode@kawato_freeze
 say "FREEZE_START_RC=$? ACTIVE=$(systemctl is-active lode@kawato_freeze)"
 sleep 1
-XDG_RUNTIME_DIR=/run/lode/kawato_freeze lode set --local "$(cat /guest/freeze_target)" 1 >/tmp/set.txt 2>&1
+# As the service's user: lode refuses to command a socket another user serves, root included.
+runuser -u lode -- env XDG_RUNTIME_DIR=/run/lode/kawato_freeze lode set --local "$(cat /guest/freeze_target)" 1 \
+  >/tmp/set.txt 2>&1
 say "SET_RC=$?"
 prefixed set </tmp/set.txt
 restarted() { [ "$(systemctl show -p NRestarts --value lode@kawato_freeze)" -ge 1 ]; }
