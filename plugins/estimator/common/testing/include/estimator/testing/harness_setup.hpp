@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cstddef>
+#include <initializer_list>
 #include <string>
 #include <vector>
 
@@ -42,6 +43,24 @@ inline ::testing::AssertionResult faults_and_holds(lode::testing::BlockHarness& 
   const auto after = h.output(output);
   if (!std::equal(before.begin(), before.end(), after.begin(), after.end())) {
     return ::testing::AssertionFailure() << "output '" << output << "' changed on the faulting step";
+  }
+  return ::testing::AssertionSuccess();
+}
+
+/// The two blocks' outputs `ports` hold exactly the same values after cycle `cycle`, for
+/// ASSERT_TRUE: a failure names the first element that differs and by how much (a compile-time
+/// sized kernel against the general one must agree bit for bit).
+inline ::testing::AssertionResult same_outputs(lode::testing::BlockHarness& a, lode::testing::BlockHarness& b,
+                                               std::initializer_list<const char*> ports, std::size_t cycle) {
+  for (const char* port : ports) {
+    const auto x = a.output(port);
+    const auto y = b.output(port);
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      if (x[i] != y[i]) {
+        return ::testing::AssertionFailure() << port << "[" << i << "] at cycle " << cycle << " differs by "
+                                             << x[i] - y[i];
+      }
+    }
   }
   return ::testing::AssertionSuccess();
 }
