@@ -148,6 +148,26 @@ def start(tmp, name, config_text, extra_env, same_stream=True, journal=True, ext
     return proc, log_path
 
 
+def start_supervised(tmp, name, config_text, env, watchdog_s=None, extra_args=()):
+    """start() under a stand-in service manager listening on TMP/NAME.sock as NOTIFY_SOCKET (and
+    WATCHDOG_USEC when watchdog_s is given); returns the process, the manager and the log."""
+    log_path = os.path.join(tmp, name + ".log")
+    manager = Manager(os.path.join(tmp, name + ".sock"), log_path)
+    notify_env = dict(env, NOTIFY_SOCKET=manager.sock.getsockname())
+    if watchdog_s is not None:
+        notify_env["WATCHDOG_USEC"] = str(int(watchdog_s * 1e6))
+    proc, _ = start(tmp, name, config_text, notify_env, extra_args=extra_args)
+    return proc, manager, log_path
+
+
+def ready(manager, log_path):
+    """READY=1 arrived within a minute; a failure shows the run's log."""
+    if manager.wait_for("READY=1", timeout=60):
+        return True
+    bad("READY=1 arrives", read(log_path)[-2000:])
+    return False
+
+
 def stop(proc):
     if proc.poll() is None:
         proc.kill()
@@ -190,14 +210,9 @@ def lode_set(env, what):
 
 def watchdog_case(tmp, env):
     print("--- 1. a frozen loop stops the watchdog pings; SIGABRT drives the outputs safe")
-    log_path = os.path.join(tmp, "watchdog.log")
-    manager = Manager(os.path.join(tmp, "notify1.sock"), log_path)
-    proc, _ = start(tmp, "watchdog", PIPELINE, dict(env, NOTIFY_SOCKET=manager.sock.getsockname(),
-                                                    WATCHDOG_USEC=str(int(WATCHDOG_S * 1e6))),
-                    extra_args=["--until-stopped"])
+    proc, manager, log_path = start_supervised(tmp, "watchdog", PIPELINE, env, WATCHDOG_S, ["--until-stopped"])
     try:
-        if not manager.wait_for("READY=1", timeout=60):
-            bad("READY=1 arrives", read(log_path)[-2000:])
+        if not ready(manager, log_path):
             return
         ok("READY=1 arrives")
         before = manager.log_at_ready or ""
@@ -256,14 +271,9 @@ def watchdog_case(tmp, env):
 def stop_case(tmp, env):
     print("--- 2. SIGTERM (systemctl stop) of a run --until-stopped: STOPPING=1, outputs driven safe, exit 0, "
           "<N> on every line")
-    log_path = os.path.join(tmp, "stop.log")
-    manager = Manager(os.path.join(tmp, "notify2.sock"), log_path)
-    proc, _ = start(tmp, "stop", PIPELINE, dict(env, NOTIFY_SOCKET=manager.sock.getsockname(),
-                                                WATCHDOG_USEC=str(int(WATCHDOG_S * 1e6))),
-                    extra_args=["--until-stopped"])
+    proc, manager, log_path = start_supervised(tmp, "stop", PIPELINE, env, WATCHDOG_S, ["--until-stopped"])
     try:
-        if not manager.wait_for("READY=1", timeout=60):
-            bad("READY=1 arrives", read(log_path)[-2000:])
+        if not ready(manager, log_path):
             return
         time.sleep(3.0)  # past duration_s (2 s): --until-stopped runs on
         check("--until-stopped outlives duration_s", proc.poll() is None, f"exit {proc.poll()}")
@@ -296,9 +306,7 @@ def stop_case(tmp, env):
 
 def fault_case(tmp, env):
     print("--- 3. a fault: exit 1, <3> lines, STOPPING=1")
-    log_path = os.path.join(tmp, "fault.log")
-    manager = Manager(os.path.join(tmp, "notify3.sock"), log_path)
-    proc, _ = start(tmp, "fault", FAULTING, dict(env, NOTIFY_SOCKET=manager.sock.getsockname()))
+    proc, manager, log_path = start_supervised(tmp, "fault", FAULTING, env)
     try:
         try:
             rc = proc.wait(timeout=60)
