@@ -51,7 +51,9 @@ UNIT
 # The emulator stands in for hardware, which nothing on the host holds up: it has CPU 2 to itself
 # (the guest has three). On CPU 1 io.vme_pentek polls the board at SCHED_FIFO 80 until the
 # conversion is done, so an emulator there never runs; on CPU 0, with systemd, journald and
-# lode's non-RT threads, the emulated CPU left it silent for a whole conversion timeout.
+# lode's non-RT threads, the emulated CPU left it silent for a whole conversion timeout. CPU 2
+# is not isolated, so lode's non-RT threads (which leave the RT CPU) can land there too; at
+# SCHED_FIFO 70 the emulator still runs first, as a board would.
 cat >"$G/etc/systemd/system/lode-vme-emu@.service" <<'UNIT'
 [Unit]
 Description=emulated VME board for /etc/lodestone/%i.yaml
@@ -59,6 +61,8 @@ Description=emulated VME board for /etc/lodestone/%i.yaml
 ExecStart=/usr/bin/lode-vme-emu /etc/lodestone/%i.yaml --sim /usr/share/lodestone/config/kawato_planar.yaml
 User=lode
 CPUAffinity=2
+CPUSchedulingPolicy=fifo
+CPUSchedulingPriority=70
 UNIT
 cat >"$G/etc/systemd/system/guest-test.service" <<'UNIT'
 [Unit]
@@ -140,7 +144,7 @@ contains "systemd's watchdog fired" "$C" "^SVC: freeze_journal\| .*[Ww]atchdog t
 contains "the stuck loop is reported as an error" "$C" "^SVC: freeze_journal_err\| .*no progress"
 contains "the crash guard drove the outputs safe, filed as critical or worse" "$C" "^SVC: freeze_journal_err\| lode: SIGABRT: sent by process 1 .*outputs driven to their safe values"
 contains "the unit restarted" "$C" "^SVC: NRESTARTS=[1-9]"
-contains "and is active again" "$C" "^SVC: ACTIVE_AFTER_RESTART=active$"
+contains "and the restarted process reported READY again" "$C" "^SVC: READY_AFTER_RESTART=yes$"
 contains "the guest finished" "$C" "^SVC: DONE$"
 [ $fail -eq 0 ] && echo PASS
 exit $fail
