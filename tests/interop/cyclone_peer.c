@@ -32,7 +32,7 @@ static const char* kClient = "cyclone-peer";  // also the participant's name (al
 struct known_topic {
   uint64_t id;
   char name[256];
-  bool disposed;
+  bool gone;  // disposed, or its writer left without disposing it
 };
 static struct known_topic topics[kMaxTopics];
 static int topic_count;
@@ -68,7 +68,7 @@ static void print_values(FILE* out, const dds_sequence_double* s) {
 }
 
 // Metadata: remember each topic by key; count the disposes of the ones seen.
-static void take_infos(dds_entity_t reader, int* disposed) {
+static void take_infos(dds_entity_t reader, int* disposed, int* gone) {
   void* samples[kBatch] = {NULL};
   dds_sample_info_t infos[kBatch];
   const int n = dds_take(reader, samples, infos, kBatch, kBatch);
@@ -87,13 +87,12 @@ static void take_infos(dds_entity_t reader, int* disposed) {
              s->reliable ? "reliable" : "best_effort", s->topic_id == expected ? "xxh64" : "WRONG");
       for (uint32_t e = 0; e < s->names._length; ++e) printf(" %s[%s]", s->names._buffer[e], s->units._buffer[e]);
       printf("\n");
-    } else if (k < topic_count && !topics[k].disposed) {
+    } else if (k < topic_count && !topics[k].gone) {
       const bool is_disposed = infos[i].instance_state == DDS_IST_NOT_ALIVE_DISPOSED;
       printf("%s %016" PRIx64 " %s\n", is_disposed ? "disposed" : "not_alive_no_writers", s->topic_id, topics[k].name);
-      if (is_disposed) {
-        topics[k].disposed = true;
-        ++*disposed;
-      }
+      topics[k].gone = true;
+      ++*gone;
+      if (is_disposed) ++*disposed;
     }
   }
   if (n > 0) dds_return_loan(reader, samples, n);
@@ -192,7 +191,7 @@ int main(int argc, char** argv) {
     return 1;
   }
 
-  int status = 0, disposed = 0;
+  int status = 0, disposed = 0, gone = 0;
   snprintf(path, sizeof path, "%s/signal.txt", outdir);
   FILE* signal_out = fopen(path, "w");
   snprintf(path, sizeof path, "%s/state.txt", outdir);
@@ -212,7 +211,7 @@ int main(int argc, char** argv) {
       status = 1;
       break;
     }
-    take_infos(info_reader, &disposed);
+    take_infos(info_reader, &disposed, &gone);
     int got;
     while ((got = take_serialized(signal_reader, &lode_msg_SignalSample_desc, false, signal_out)) > 0) signals += got;
     if (got < 0) status = 1;
@@ -246,12 +245,14 @@ int main(int argc, char** argv) {
     printf("awaiting-dispose\n");
     fflush(stdout);
     const dds_time_t deadline = dds_time() + DDS_SECS(60);
-    while (disposed < topic_count && dds_time() < deadline) {
-      take_infos(info_reader, &disposed);
+    while (gone < topic_count && dds_time() < deadline) {
+      take_infos(info_reader, &disposed, &gone);
       dds_sleepfor(kPoll);
     }
     printf("disposed %d of %d metadata instances\n", disposed, topic_count);
-    if (disposed < topic_count) status = fail("not every metadata instance was disposed within 60 s");
+    if (disposed < topic_count)
+      status = fail(gone == topic_count ? "metadata instances went with their writer, never disposed"
+                                        : "not every metadata instance was disposed within 60 s");
   }
   fflush(stdout);
   dds_delete(participant);
