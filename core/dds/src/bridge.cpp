@@ -164,6 +164,16 @@ Status Bridge::publish_signal_info() {
     info.reliable(spec_.reliable);
     infos.push_back(std::move(info));
   }
+  // Two topics with one key would be one instance: a late joiner would learn only one of
+  // them. Across pipelines the odds are negligible (64 bits); within one, refuse.
+  std::map<std::uint64_t, const std::string*> seen;
+  for (auto& info : infos) {
+    info.topic_id(detail::topic_id(info.topic()));
+    if (auto [it, fresh] = seen.emplace(info.topic_id(), &info.topic()); !fresh) {
+      return Status::error("telemetry: topics '" + *it->second + "' and '" + info.topic() +
+                           "' have the same topic_id (XXH64 of the name): rename a block or port");
+    }
+  }
   for (auto& info : infos) {
     if (!info_writer_->write(&info)) {
       return Status::error("telemetry: could not publish the SignalInfo of '" + info.topic() + "'");

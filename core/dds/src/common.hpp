@@ -15,6 +15,11 @@
 #include "lode/sdk/status.hpp"
 #include "lode_msgsPubSubTypes.h"
 
+// Inlined (a header of Debian's libxxhash-dev): the key of lode/signals costs no library at
+// run time.
+#define XXH_INLINE_ALL
+#include <xxhash.h>
+
 namespace lode::dds::detail {
 
 namespace fdds = eprosima::fastdds::dds;
@@ -36,6 +41,11 @@ inline Status register_types(fdds::DomainParticipant* participant) {
   }
   return Status::ok();
 }
+
+/// SignalInfo's key: XXH64, seed 0, of the topic name's bytes. Eight bytes travel as
+/// themselves in the DDSI key hash (a longer key travels as its MD5), so a reader of any
+/// DDS implementation can map a dispose back to its instance.
+inline std::uint64_t topic_id(const std::string& topic) { return XXH64(topic.data(), topic.size(), 0); }
 
 inline const char* type_name_signal_info() { return "lode::msg::SignalInfo"; }
 inline const char* type_name_signal_sample() { return "lode::msg::SignalSample"; }
