@@ -21,9 +21,13 @@ sed -e "s/^  domain: 0/  domain: $DOMAIN/" -e "s/overrun_policy: skip/overrun_po
   "$SRC/config/kawato_planar.yaml" >"$TMP/p.yaml"
 grep -q "overrun_policy: catch_up" "$TMP/p.yaml" || { echo "setup: kawato_planar.yaml has no overrun_policy: skip"; exit 1; }
 cycles=$((SECONDS_RUN * 800))
+# Datagrams the kernel dropped for a full receive buffer, on the whole host (other processes
+# count too): where a loss on UDP shows up.
+udp_buffer_drops() { awk '/^Udp:/ && $6 ~ /^[0-9]+$/ {print $6}' /proc/net/snmp; }
 lossless=0
 for ((i = 1; i <= RUNS; i++)); do
   rm -f "$TMP/rec.h5"
+  drops_before=$(udp_buffer_drops)
   "$LODE" record "$TMP/rec.h5" --domain "$DOMAIN" --wait 60 >"$TMP/rec.out" 2>&1 &
   REC=$!
   PIDS+=("$REC")
@@ -41,7 +45,7 @@ for ((i = 1; i <= RUNS; i++)); do
   fi
   # Where a loss happened: the pipeline's rings (publisher too slow) or after the write.
   read -r published ring_dropped overruns < <($PY -c "import json; j = json.load(open('$TMP/run.json')); t = j['telemetry']; print(t['published'], t['ring_dropped'], j['timing']['overruns'])" 2>/dev/null || echo "? ? ?")
-  sent="published $published, ring drops $ring_dropped, overruns $overruns"
+  sent="published $published, ring drops $ring_dropped, overruns $overruns; host UDP receive-buffer drops $(($(udp_buffer_drops) - drops_before))"
   [ "$published" = "$samples" ] && [ "$ring_dropped" = 0 ] && [ "$run_rc" -eq 0 ] && [ "$rec_rc" -eq 0 ] && [ "$missing" -eq 0 ] && [ "$complete" = complete ] \
     && lossless=$((lossless + 1))
   echo "run $i: $samples samples recorded, $missing missing (record exit $rec_rc, run exit $run_rc; pipeline: $sent), $complete"

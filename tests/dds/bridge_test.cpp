@@ -25,6 +25,7 @@
 #include <fastdds/dds/subscriber/SampleInfo.hpp>
 #include <fastdds/dds/subscriber/Subscriber.hpp>
 #include <fastdds/dds/topic/Topic.hpp>
+#include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
 #include <fastdds/rtps/transport/shared_mem/SharedMemTransportDescriptor.h>
 
 #include "lode/sdk/tunables.hpp"
@@ -263,6 +264,28 @@ TEST(Participant, SharedMemoryHoldsASecondOfABusyPipeline) {
       EXPECT_GE(shm->segment_size(), 4u << 20) << lode::to_string(kind) << ": segment (bytes)";
     }
     EXPECT_EQ(shared_memory, 1) << lode::to_string(kind);
+  }
+}
+
+TEST(Participant, UdpReceiveBuffersHoldBurstsOfSamples) {
+  // Samples reach a reader on this host as UDP datagrams too; the kernel's default receive
+  // buffer (208 KiB) overflowed when `lode record` did not run for tens of milliseconds.
+  eprosima::fastdds::dds::DomainParticipantQos qos;
+  ParticipantOptions options;
+  options.name = "x";
+  for (const auto kind : {lode::TransportSpec::Kind::loopback, lode::TransportSpec::Kind::udp_loopback,
+                          lode::TransportSpec::Kind::network}) {
+    options.transport.kind = kind;
+    ASSERT_TRUE(lode::dds::configure_participant_qos(options, qos));
+    int udp = 0;
+    for (const auto& transport : qos.transport().user_transports) {
+      const auto descriptor =
+          std::dynamic_pointer_cast<eprosima::fastdds::rtps::UDPv4TransportDescriptor>(transport);
+      if (!descriptor) continue;
+      ++udp;
+      EXPECT_GE(descriptor->receiveBufferSize, 4u << 20) << lode::to_string(kind);
+    }
+    EXPECT_EQ(udp, 1) << lode::to_string(kind);
   }
 }
 
