@@ -191,9 +191,11 @@ void Bridge::publisher_loop() {
   PublishDoorbell& doorbell = tap_.doorbell();
   std::uint32_t seen = doorbell.sequence();
   while (!stopping_.load(std::memory_order_acquire)) {
+    std::optional<clock::time_point> aim;
     {
-      std::lock_guard lock(publish_mutex_);
+      std::lock_guard lock(publish_mutex_);  // flush() drains too, and learns from what it drains
       drain_rings();
+      aim = next_capture();
       publish_events();
       if (clock::now() >= next_timing) {
         publish_timing();
@@ -206,7 +208,7 @@ void Bridge::publisher_loop() {
     // thread's ring() is an atomic add and a load, no system call. Sleep until just after
     // the expected capture (real clock only: a simulated one has no schedule to aim at);
     // if the capture is late, the doorbell wakes us.
-    if (const auto aim = next_capture(); aim && *aim < wake_by) std::this_thread::sleep_until(*aim);
+    if (aim && *aim < wake_by) std::this_thread::sleep_until(*aim);
     if (doorbell.sequence() == seen) {
       const auto left = wake_by - clock::now();
       doorbell.wait(seen, std::chrono::duration_cast<std::chrono::nanoseconds>(left));

@@ -224,7 +224,7 @@ class Bridge final : public TelemetryBridge {
   void publisher_loop();
   void command_loop();
   void drain_rings();
-  /// When the next record should be in its ring (publisher thread; nullopt: no estimate).
+  /// When the next record should be in its ring (nullopt: no estimate). Under publish_mutex_.
   [[nodiscard]] std::optional<std::chrono::steady_clock::time_point> next_capture() const;
   void learn_capture_time(const SampleHeader& header);
   void publish_timing();
@@ -255,7 +255,8 @@ class Bridge final : public TelemetryBridge {
   std::mutex publish_mutex_;  ///< one consumer of the rings at a time (thread or flush())
   std::size_t event_cursor_ = 0;
 
-  // The publisher thread's estimate of when the RT thread copies a cycle's values.
+  // When the RT thread copies a cycle's values, learnt from the records drained (under
+  // publish_mutex_, as the rings).
   std::int64_t record_step_ns_ = 0;   ///< between two cycles that publish something
   std::int64_t capture_offset_ns_ = 0;
   bool capture_offset_known_ = false;
