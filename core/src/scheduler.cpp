@@ -92,6 +92,9 @@ bool Scheduler::cycle(const Tick& tick, RunResult& result) noexcept {
   for (auto* hook : hooks_) hook->before_cycle(tick);
   const auto r = pipeline_.run_cycle(tick, time_ops_);
   for (auto* hook : hooks_) hook->after_cycle(tick);
+  // Every output and every copy of it is in place: wake whoever publishes them (a futex
+  // word; see PublishDoorbell), before the statistics and the sleep.
+  for (auto* hook : hooks_) hook->cycle_finished();
   if (!clock_.simulated()) stats_.cycle_time.record(clock_.now_ns() - start);
   stats_.cycles.store(tick.cycle + 1, std::memory_order_relaxed);
   stats_.executed.store(stats_.executed.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);

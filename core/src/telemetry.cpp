@@ -1,9 +1,14 @@
 #include "lode/sdk/clock.hpp"
 #include "lode/telemetry.hpp"
 
+#include <linux/futex.h>
+#include <sys/syscall.h>
 #include <time.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <climits>
 
 namespace lode {
 
@@ -41,6 +46,45 @@ std::size_t ring_capacity(const TelemetrySpec& spec, double rate_hz) {
 }
 
 }  // namespace
+
+namespace {
+long futex(std::atomic<std::uint32_t>& word, int op, std::uint32_t value, const timespec* timeout) noexcept {
+  static_assert(sizeof(std::atomic<std::uint32_t>) == sizeof(std::uint32_t), "a futex is a plain 32-bit word");
+  return syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&word), op, value, timeout, nullptr, 0);
+}
+}  // namespace
+
+void PublishDoorbell::ring() noexcept {
+  // Sequentially consistent on both sides (Dekker): either the waiter sees the new sequence
+  // before it sleeps, or this sees its `sleeping_` and wakes it; FUTEX_WAIT re-checks the
+  // word in the kernel, so a ring between its check and its sleep is not lost either.
+  sequence_.fetch_add(1, std::memory_order_seq_cst);
+  if (sleeping_.load(std::memory_order_seq_cst) != 0 && sleeping_.exchange(0, std::memory_order_seq_cst) != 0) {
+    futex(sequence_, FUTEX_WAKE_PRIVATE, 1, nullptr);
+    wakes_.store(wakes_.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+  }
+}
+
+bool PublishDoorbell::wait(std::uint32_t seen, std::chrono::nanoseconds timeout) noexcept {
+  if (timeout.count() <= 0) return false;
+  sleeping_.store(1, std::memory_order_seq_cst);
+  if (sequence_.load(std::memory_order_seq_cst) != seen) {
+    sleeping_.store(0, std::memory_order_relaxed);
+    return true;
+  }
+  timespec ts{};
+  ts.tv_sec = static_cast<time_t>(timeout.count() / 1'000'000'000);
+  ts.tv_nsec = static_cast<long>(timeout.count() % 1'000'000'000);
+  const long r = futex(sequence_, FUTEX_WAIT_PRIVATE, seen, &ts);
+  const bool timed_out = r != 0 && errno == ETIMEDOUT;
+  sleeping_.store(0, std::memory_order_relaxed);
+  return !timed_out;
+}
+
+void PublishDoorbell::wake_all() noexcept {
+  sleeping_.store(0, std::memory_order_seq_cst);
+  futex(sequence_, FUTEX_WAKE_PRIVATE, INT_MAX, nullptr);
+}
 
 TelemetryTap::TelemetryTap(const TelemetrySpec& spec, double pipeline_rate_hz) {
   for (const auto& s : spec.signals) {
@@ -83,6 +127,13 @@ void TelemetryTap::after_cycle(const Tick& tick) noexcept {
     }
     c.ring->push(h, c.data, c.width, c.extra_data[0], c.extra_width[0], c.extra_data[1], c.extra_width[1]);
   }
+  offered_this_cycle_ = offered_this_cycle_ || stamped;
+}
+
+void TelemetryTap::cycle_finished() noexcept {
+  if (!offered_this_cycle_) return;  // a decimated cycle: nothing new to publish
+  offered_this_cycle_ = false;
+  doorbell_.ring();
 }
 
 std::uint64_t TelemetryTap::dropped() const {

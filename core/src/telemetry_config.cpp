@@ -161,7 +161,7 @@ void Pipeline::Impl::parse_telemetry(const YAML::Node& t) {
   spec.reliable = p.choice("reliability", {"best_effort", "reliable"}, "best_effort") == "reliable";
   spec.publish_period_s = p.number("publish_period_ms", 1.0) * 1e-3;
   p.check(spec.publish_period_s >= 50e-6 && spec.publish_period_s <= 0.1, "publish_period_ms",
-          "must be in [0.05, 100] ms (the publisher's polling period: latency vs CPU)");
+          "must be in [0.05, 100] ms (the longest the publisher waits for the RT thread's doorbell)");
   spec.timing_rate_hz = p.number("timing_rate_hz", 1.0);
   p.check(spec.timing_rate_hz > 0 && spec.timing_rate_hz <= 100, "timing_rate_hz", "must be in (0, 100] Hz");
   const auto ring = p.integer("ring_records", 0);

@@ -1,7 +1,8 @@
 // The telemetry bridge: two non-RT threads and the DDS entities of one pipeline.
 //
-// "lode-telemetry" drains the TelemetryTap's rings every millisecond and writes the
-// samples, the timing statistics (every 1/timing_rate_hz) and new events. "lode-commands"
+// "lode-telemetry" drains the TelemetryTap's rings when the RT thread rings its doorbell
+// (at the latest every publish_period_ms) and writes the samples, the timing statistics
+// (every 1/timing_rate_hz) and new events. "lode-commands"
 // takes commands in arrival order, checks who sent them against telemetry.commands and
 // hands the allowed ones to the ControlService, which waits for the RT thread to apply
 // them; the Fast DDS listener threads only wake it up, so a slow command never holds
@@ -106,6 +107,9 @@ Status Bridge::open(const ParticipantOptions& options) {
   }
   if (!status) return status;
   if (Status s = publish_signal_info(); !s) return s;
+  std::uint32_t step = 0;  // cycles between records: the gcd of the decimations
+  for (const auto& c : tap_.channels()) step = std::gcd(step, std::max<std::uint32_t>(c.decimation, 1));
+  record_step_ns_ = pipeline_.period_ns() * std::max<std::uint32_t>(step, 1);
 
   publisher_thread_ = std::thread([this] {
     pthread_setname_np(pthread_self(), "lode-telemetry");
@@ -184,19 +188,24 @@ Status Bridge::publish_signal_info() {
 
 void Bridge::publisher_loop() {
   using clock = std::chrono::steady_clock;
+  // Timed waits to the microsecond: the default slack of a normal thread (50 us) would add
+  // up to that much to every sample's latency.
+  prctl(PR_SET_TIMERSLACK, 1000UL, 0UL, 0UL, 0UL);
   const double timing_rate = spec_.timing_rate_hz > 0 ? spec_.timing_rate_hz : 1.0;
   const auto timing_period = std::chrono::duration_cast<clock::duration>(
       std::chrono::duration<double>(1.0 / timing_rate));
   auto next_timing = clock::now() + timing_period;
-  std::unique_lock wake_lock(wake_mutex_);
-  // The RT thread cannot wake us (that would be a system call): poll. The period bounds
-  // the added latency (uniform in [0, period]) against the CPU cost of waking up.
+  // The doorbell wakes us when the RT thread has new samples; publish_period bounds the wait
+  // when none comes (events, a stopped or decimated loop).
   const auto publish_period = std::chrono::microseconds(static_cast<long long>(spec_.publish_period_s * 1e6));
-  while (!stopped_) {
-    wake_lock.unlock();
+  PublishDoorbell& doorbell = tap_.doorbell();
+  std::uint32_t seen = doorbell.sequence();
+  while (!stopping_.load(std::memory_order_acquire)) {
+    std::optional<clock::time_point> aim;
     {
-      std::lock_guard lock(publish_mutex_);
+      std::lock_guard lock(publish_mutex_);  // flush() drains too, and learns from what it drains
       drain_rings();
+      aim = next_capture();
       publish_events();
       if (clock::now() >= next_timing) {
         publish_timing();
@@ -204,13 +213,45 @@ void Bridge::publisher_loop() {
         if (next_timing < clock::now()) next_timing = clock::now() + timing_period;
       }
     }
-    wake_lock.lock();
-    wake_.wait_for(wake_lock, publish_period, [this] { return stopped_; });
+    const auto wake_by = std::min(clock::now() + publish_period, next_timing);
+    // Be awake when the next samples come, rather than asleep on the doorbell: then the RT
+    // thread's ring() is an atomic add and a load, no system call. Sleep until just after
+    // the expected capture (real clock only: a simulated one has no schedule to aim at);
+    // if the capture is late, the doorbell wakes us.
+    if (aim && *aim < wake_by) std::this_thread::sleep_until(*aim);
+    if (doorbell.sequence() == seen) {
+      const auto left = wake_by - clock::now();
+      doorbell.wait(seen, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
+    }
+    seen = doorbell.sequence();
   }
-  wake_lock.unlock();
   std::lock_guard lock(publish_mutex_);  // what the last cycles left behind
   drain_rings();
   publish_events();
+}
+
+std::optional<std::chrono::steady_clock::time_point> Bridge::next_capture() const {
+  if (!capture_offset_known_ || run_stats_.wake_latency.count() == 0) return std::nullopt;
+  const std::int64_t aim_ns = last_stamp_ns_ + record_step_ns_ + capture_offset_ns_;
+  // steady_clock is CLOCK_MONOTONIC, the clock of captured_ns.
+  return std::chrono::steady_clock::time_point(std::chrono::nanoseconds(aim_ns));
+}
+
+void Bridge::learn_capture_time(const SampleHeader& header) {
+  // captured_ns - stamp_ns is the run's start on CLOCK_MONOTONIC plus how late the RT thread
+  // copied this cycle's values. Track its 90th percentile (a streaming estimate: up 1 us when
+  // above, down 1/9 us when below), so we wake after nine captures in ten.
+  constexpr std::int64_t kStepNs = 1000;
+  const std::int64_t offset = header.captured_ns - header.stamp_ns;
+  if (!capture_offset_known_) {
+    capture_offset_ns_ = offset;
+    capture_offset_known_ = true;
+  } else if (offset > capture_offset_ns_) {
+    capture_offset_ns_ += kStepNs;
+  } else if (offset < capture_offset_ns_) {
+    capture_offset_ns_ -= kStepNs / 9;
+  }
+  last_stamp_ns_ = std::max(last_stamp_ns_, header.stamp_ns);
 }
 
 void Bridge::drain_rings() {
@@ -220,6 +261,7 @@ void Bridge::drain_rings() {
     SampleRing& ring = *tap_channels[i].ring;
     SampleHeader header;
     while (const double* values = ring.front(header)) {
+      learn_capture_time(header);
       bool ok = false;
       if (!channel.state) {
         auto& s = channel.sample;

@@ -5,6 +5,7 @@
 #include "lode/dds/bridge.hpp"
 
 #include <pthread.h>
+#include <sys/prctl.h>
 
 #include <algorithm>
 #include <atomic>
@@ -12,6 +13,8 @@
 #include <condition_variable>
 #include <map>
 #include <mutex>
+#include <numeric>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -138,6 +141,8 @@ class Bridge final : public TelemetryBridge {
       if (stopped_) return;
       stopped_ = true;
     }
+    stopping_.store(true, std::memory_order_release);
+    tap_.doorbell().wake_all();
     wake_.notify_all();
     if (publisher_thread_.joinable()) publisher_thread_.join();
     if (command_thread_.joinable()) command_thread_.join();
@@ -219,6 +224,9 @@ class Bridge final : public TelemetryBridge {
   void publisher_loop();
   void command_loop();
   void drain_rings();
+  /// When the next record should be in its ring (nullopt: no estimate). Under publish_mutex_.
+  [[nodiscard]] std::optional<std::chrono::steady_clock::time_point> next_capture() const;
+  void learn_capture_time(const SampleHeader& header);
   void publish_timing();
   void publish_events();
   void handle_command(const lode::msg::Command& command, const fdds::SampleInfo& info);
@@ -246,6 +254,14 @@ class Bridge final : public TelemetryBridge {
 
   std::mutex publish_mutex_;  ///< one consumer of the rings at a time (thread or flush())
   std::size_t event_cursor_ = 0;
+
+  // When the RT thread copies a cycle's values, learnt from the records drained (under
+  // publish_mutex_, as the rings).
+  std::int64_t record_step_ns_ = 0;   ///< between two cycles that publish something
+  std::int64_t capture_offset_ns_ = 0;
+  bool capture_offset_known_ = false;
+  std::int64_t last_stamp_ns_ = 0;
+  std::atomic<bool> stopping_{false};  ///< the publisher thread's stop flag
 
   std::mutex wake_mutex_;
   std::condition_variable wake_;

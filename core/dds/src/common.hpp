@@ -78,6 +78,11 @@ inline fdds::DataWriterQos writer_qos(Durability durability, std::int32_t depth,
   // drops its oldest sample (KEEP_LAST), and a write that still cannot proceed fails
   // after 1 ms and is counted.
   qos.reliability().max_blocking_time = eprosima::fastrtps::Duration_t(0, 1000000);
+  // A late joiner's reader often matches the writer after the writer has sent it the
+  // history and its first HEARTBEAT, which it then ignores; the next HEARTBEAT (Fast DDS:
+  // every 3 s) is what gets it the metadata and events. Every 50 ms a client has them at
+  // once; heartbeats only go out while a reader has something unacknowledged.
+  qos.reliable_writer_qos().times.heartbeatPeriod = eprosima::fastrtps::Duration_t(0, 50'000'000);
   qos.durability().kind = durability == Durability::transient_local
                               ? fdds::TRANSIENT_LOCAL_DURABILITY_QOS
                               : fdds::VOLATILE_DURABILITY_QOS;

@@ -41,6 +41,19 @@ namespace {
 constexpr std::uint32_t kLoopbackPeersRange = 64;
 constexpr std::uint32_t kNetworkPeersRange = 16;
 constexpr std::int32_t kAnnouncementPeriodS = 1;
+// Shared memory between the processes of one host. A best-effort sample is lost when the
+// reader's port queue is full (its process did not run) or the writer's segment has no free
+// buffer (a reader still holds them). Fast DDS's defaults, 512 descriptors and 512 KiB, are
+// 90 ms of a pipeline publishing 7 topics at 800 Hz: `lode record` beside a loop on a busy
+// 2-core host lost samples in bursts. 8192 descriptors and 8 MiB hold more than a second of
+// that; the segment is touched only as far as it is used.
+constexpr std::uint32_t kSharedMemoryPortQueue = 8192;
+constexpr std::uint32_t kSharedMemorySegmentBytes = 8u << 20;
+// UDP on this host carries a pipeline's samples too (a `lode record` process received them
+// as datagrams, ~5600 a second for kawato_planar): with the kernel's default receive buffer
+// (208 KiB, a few hundred datagrams) a reader that did not run for a few tens of
+// milliseconds lost bursts of them (RcvbufErrors). 4 MiB, as far as net.core.rmem_max allows.
+constexpr std::uint32_t kUdpReceiveBufferBytes = 4u << 20;
 
 bool parse_ipv4(const std::string& text, std::uint8_t out[4]) {
   in_addr address{};
@@ -123,6 +136,7 @@ Status configure_participant_qos(const ParticipantOptions& options, fdds::Domain
   const std::uint8_t localhost[4] = {127, 0, 0, 1};
   const auto loopback_udp = [&] {
     auto udp = std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>();
+    udp->receiveBufferSize = kUdpReceiveBufferBytes;
     udp->interfaceWhiteList.emplace_back("127.0.0.1");
     udp->maxInitialPeersRange = kLoopbackPeersRange;
     transport.user_transports.push_back(udp);
@@ -131,8 +145,10 @@ Status configure_participant_qos(const ParticipantOptions& options, fdds::Domain
     builtin.metatrafficUnicastLocatorList.push_back(udp_locator(localhost, 0));
   };
   const auto shared_memory = [&] {
-    transport.user_transports.push_back(
-        std::make_shared<eprosima::fastdds::rtps::SharedMemTransportDescriptor>());
+    auto shm = std::make_shared<eprosima::fastdds::rtps::SharedMemTransportDescriptor>();
+    shm->segment_size(kSharedMemorySegmentBytes);
+    shm->port_queue_capacity(kSharedMemoryPortQueue);
+    transport.user_transports.push_back(shm);
   };
 
   const TransportSpec& spec = options.transport;
@@ -149,6 +165,7 @@ Status configure_participant_qos(const ParticipantOptions& options, fdds::Domain
       break;
     case TransportSpec::Kind::network: {
       auto udp = std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>();
+      udp->receiveBufferSize = kUdpReceiveBufferBytes;
       udp->maxInitialPeersRange = kNetworkPeersRange;
       std::vector<rtps::Locator_t> interface_locators;
       for (std::size_t i = 0; i < spec.interfaces.size(); ++i) {

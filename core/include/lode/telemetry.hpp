@@ -4,11 +4,14 @@
 // The RT thread never talks to Fast DDS. After each cycle it copies the published signals,
 // each at its own decimated rate, into wait-free single-producer rings (TelemetryTap); a
 // non-RT thread of the DDS bridge (core/dds) drains them and publishes typed topics. A full
-// ring drops the record and counts it; the RT thread never waits. The core itself does not
-// depend on Fast DDS: a pipeline without a bridge (or built without one) runs unchanged.
+// ring drops the record and counts it; the RT thread never waits. At the end of a cycle
+// that filled a ring it rings a PublishDoorbell, so the publisher sends the samples at once
+// instead of at its next poll. The core itself does not depend on Fast DDS: a pipeline
+// without a bridge (or built without one) runs unchanged.
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -85,7 +88,9 @@ struct TelemetrySpec {
   std::vector<TelemetrySignal> signals;
   std::optional<StateSpec> state;
   double timing_rate_hz = 1.0;   ///< timing statistics topic
-  double publish_period_s = 0.001;  ///< how often the publisher thread drains the rings
+  /// The longest the publisher thread waits for the doorbell before it looks at the rings
+  /// and the events anyway (samples normally wake it at once).
+  double publish_period_s = 0.001;
   /// Signal and state topics: RELIABLE (retransmits lost packets) or BEST_EFFORT (default).
   /// Best effort because Fast DDS 2.9.1's reliable writer can deadlock its publisher thread
   /// while readers join and leave (seen in the churn test); on shared memory and loopback
@@ -109,6 +114,42 @@ class CycleHook {
   virtual void before_cycle(const Tick& /*tick*/) noexcept {}
   /// After the cycle, with the cycle's outputs in place.
   virtual void after_cycle(const Tick& /*tick*/) noexcept {}
+  /// Last of all, once every hook's after_cycle has run: tell another thread the cycle's
+  /// results are there. Wait-free, as everything on the RT thread.
+  virtual void cycle_finished() noexcept {}
+};
+
+/// How the RT thread tells the publisher thread "new samples" without waiting and, usually,
+/// without a system call: a futex word.
+///
+/// ring() (RT thread) increments the sequence and makes a FUTEX_WAKE only when the waiter has
+/// said it is asleep in wait(). An eventfd would cost a write() every cycle, and on
+/// PREEMPT_RT every such write takes the eventfd's wait-queue lock, which is a sleeping
+/// (priority-inheriting) lock there. Here the RT thread pays one locked add and one load when
+/// the publisher is awake; the FUTEX_WAKE, when it happens, takes the futex hash bucket lock
+/// (on PREEMPT_RT also priority-inheriting, held only for the few instructions of another
+/// futex call on the same bucket) and wakes a thread of lower priority, which does not
+/// preempt the RT thread. The publisher keeps the syscall rare by being awake when the
+/// samples come (see the bridge's publisher loop): `wakes()` counts the rings that had to
+/// make one.
+class PublishDoorbell {
+ public:
+  /// RT thread: new samples are in the rings. Never blocks.
+  void ring() noexcept;
+  /// The one waiting thread: sleep until the sequence differs from `seen`, wake_all() or
+  /// `timeout`. False on timeout. Spurious returns are possible: compare sequence().
+  bool wait(std::uint32_t seen, std::chrono::nanoseconds timeout) noexcept;
+  /// Any thread: end a wait() now (stopping).
+  void wake_all() noexcept;
+  [[nodiscard]] std::uint32_t sequence() const noexcept { return sequence_.load(std::memory_order_acquire); }
+  /// Rings that found the waiter asleep and made a system call to wake it.
+  [[nodiscard]] std::uint64_t wakes() const noexcept { return wakes_.load(std::memory_order_relaxed); }
+
+ private:
+  // One cache line: the RT thread touches both in ring(), and the waiter both in wait().
+  alignas(64) std::atomic<std::uint32_t> sequence_{0};
+  std::atomic<std::uint32_t> sleeping_{0};
+  std::atomic<std::uint64_t> wakes_{0};  ///< written by ring() only
 };
 
 /// RT side of the telemetry: one ring per published signal (and one for the state).
@@ -119,6 +160,10 @@ class TelemetryTap final : public CycleHook {
   TelemetryTap(const TelemetrySpec& spec, double pipeline_rate_hz);
 
   void after_cycle(const Tick& tick) noexcept override;
+  /// Rings the doorbell if this cycle put a record into a ring (dropped ones included: the
+  /// publisher is behind then and should run).
+  void cycle_finished() noexcept override;
+  [[nodiscard]] PublishDoorbell& doorbell() noexcept { return doorbell_; }
 
   struct Channel {
     const double* data = nullptr;
@@ -139,6 +184,8 @@ class TelemetryTap final : public CycleHook {
 
  private:
   std::vector<Channel> channels_;
+  bool offered_this_cycle_ = false;  ///< RT thread only
+  PublishDoorbell doorbell_;
 };
 
 }  // namespace lode
