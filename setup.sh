@@ -17,6 +17,7 @@ PACKAGES=(build-essential g++ cmake make pkg-config
   libcli11-dev nlohmann-json3-dev strace help2man man-db    # command line, local JSON commands, man pages; strace for the CLI test
   libfastrtps-dev libfastcdr-dev fastddsgen fastdds-tools  # telemetry over Fast DDS 2.9
   libhdf5-dev hdf5-tools python3-h5py python3-numpy        # recordings (HDF5) and their check
+  libxxhash-dev                                             # the output digest (XXH3-64), hashed every cycle on the RT thread
   openssl                                                   # DDS Security lab certificates
   clang libclang-rt-14-dev                                  # libFuzzer for the decoder fuzz tests
   qemu-system-x86 linux-image-amd64 busybox-static kmod cpio can-utils  # QEMU guest with a real vcan0 for the CAN test
