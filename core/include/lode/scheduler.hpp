@@ -112,8 +112,10 @@ class Scheduler {
   /// Add every hook before run(); the list is fixed while running.
   void add_hook(CycleHook* hook) { hooks_.push_back(hook); }
   void add_tap(SignalTap* tap) { add_hook(tap); }
-  /// Measure per-op execution time (two clock reads per op).
+  /// Measure per-op execution time (two clock reads per op): every cycle on the real clock,
+  /// one cycle in kSimulatedTimingStride on the simulated clock.
   void set_time_ops(bool on) { time_ops_ = on; }
+  static constexpr std::uint64_t kSimulatedTimingStride = 8;
 
   /// Run `cycles` cycles (0 = until `stop` is set). `on_idle` runs on the calling thread,
   /// never on the RT thread. The pipeline must be active.
