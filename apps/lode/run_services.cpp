@@ -76,6 +76,11 @@ Expected<std::unique_ptr<RunServices>> RunServices::start(Pipeline& pipeline, Sc
   im.spec = pipeline.telemetry();
   if (options.domain) im.spec.domain = *options.domain;
   const bool telemetry = im.spec.enabled && options.telemetry;
+  // A simulated run (lode run --clock sim, lode replay) times the ops of one cycle in eight:
+  // timing every op of every cycle was a fifth of kawato_planar's simulated cycle, and the
+  // per-block statistics it reports (summary, timing topic, replay's median step) need the
+  // distribution, not every sample. A real-clock run times every cycle: its worst case matters.
+  if (options.simulated) scheduler.set_simulated_timing_stride(kSimulatedTimingStride);
 
   // Order on the RT thread: swaps and commands before the cycle; taps and digest after it.
   // The command service always exists: the local socket reaches it without Fast DDS, the

@@ -22,6 +22,9 @@
 
 namespace lode::cli {
 
+/// On the simulated clock, the ops of one cycle in this many are timed (Scheduler).
+inline constexpr std::uint64_t kSimulatedTimingStride = 8;
+
 struct RunServiceOptions {
   bool telemetry = true;             ///< start the DDS bridge when the YAML has `telemetry:`
   std::optional<int> domain;         ///< --domain overrides telemetry.domain

@@ -112,10 +112,11 @@ class Scheduler {
   /// Add every hook before run(); the list is fixed while running.
   void add_hook(CycleHook* hook) { hooks_.push_back(hook); }
   void add_tap(SignalTap* tap) { add_hook(tap); }
-  /// Measure per-op execution time (two clock reads per op): every cycle on the real clock,
-  /// one cycle in kSimulatedTimingStride on the simulated clock.
+  /// Measure per-op execution time (two clock reads per op).
   void set_time_ops(bool on) { time_ops_ = on; }
-  static constexpr std::uint64_t kSimulatedTimingStride = 8;
+  /// On the simulated clock, measure the ops of one cycle in `n` only (default 1: every
+  /// cycle); the real clock always measures every cycle.
+  void set_simulated_timing_stride(std::uint64_t n) { simulated_timing_stride_ = n > 0 ? n : 1; }
 
   /// Run `cycles` cycles (0 = until `stop` is set). `on_idle` runs on the calling thread,
   /// never on the RT thread. The pipeline must be active.
@@ -142,6 +143,7 @@ class Scheduler {
   EventLog& events_;
   std::vector<CycleHook*> hooks_;
   bool time_ops_ = true;
+  std::uint64_t simulated_timing_stride_ = 1;
   RunStats stats_;
   // Fault details written by the RT thread, read after it joins.
   int fault_op_ = -1;
