@@ -16,7 +16,7 @@ PACKAGES=(build-essential g++ cmake make pkg-config
   libgtest-dev libgmock-dev libbenchmark-dev rt-tests libslicot-dev
   libcli11-dev nlohmann-json3-dev strace help2man man-db    # command line, local JSON commands, man pages; strace for the CLI test
   libfastrtps-dev libfastcdr-dev fastddsgen fastdds-tools  # telemetry over Fast DDS 2.9
-  libxxhash-dev                                             # the key of lode/signals (XXH64 of the topic name)
+  libxxhash-dev                                             # the output digest (XXH3-64) and the key of lode/signals (XXH64)
   cyclonedds-dev cyclonedds-tools                           # the interop test: a Cyclone DDS program (idlc) on lode's topics
   libhdf5-dev hdf5-tools python3-h5py python3-numpy        # recordings (HDF5) and their check
   openssl                                                   # DDS Security lab certificates

@@ -51,6 +51,7 @@ struct Source {
   std::string absolute;
   record::Recording recording;
   std::size_t rows = 0;  ///< cycles to replay
+  DigestAlgorithm digest = kLegacyDigestAlgorithm;  ///< what its output_digest was computed with
 
   [[nodiscard]] std::string text(const std::string& key) const {
     auto it = recording.text_attributes.find(key);
@@ -80,6 +81,15 @@ std::optional<Source> open_recording(const std::string& path) {
                  path.c_str());
     return std::nullopt;
   }
+  // The replay digests with the recording's algorithm, so that the two digests compare.
+  const auto algorithm = digest_algorithm_named(s.text(kDigestAlgorithmKey));
+  if (!algorithm) {
+    std::fprintf(stderr,
+                 "lode: replay: %s: attribute %s: '%s' is not a digest this lode computes (xxh3-64, fnv1a-64)\n",
+                 path.c_str(), kDigestAlgorithmKey, s.text(kDigestAlgorithmKey).c_str());
+    return std::nullopt;
+  }
+  s.digest = *algorithm;
   // The number of cycles to run: the rows of the raw series (every one is checked for
   // gaps by io.replay), else of any series.
   std::uint64_t first_cycle = 0;
@@ -235,7 +245,8 @@ bool check_bit_identical(const Source& source, const Job& job, ConfigResult& cr)
   for (const auto& s : cmp.only_in_one) cr.notes.push_back("not compared: " + s);
   const bool digest_ok = recorded_digest.empty() || recorded_digest == cr.digest;
   if (cmp.first_difference.empty() && digest_ok && cmp.series > 0) {
-    std::printf("bit-identical: %zu series x %zu cycles, digest %s%s\n", cmp.series, cmp.cycles, cr.digest.c_str(),
+    std::printf("bit-identical: %zu series x %zu cycles, digest %s (%s)%s\n", cmp.series, cmp.cycles,
+                cr.digest.c_str(), cr.digest_algorithm.c_str(),
                 recorded_digest.empty() ? " (the recording has no digest to compare with)" : "");
     return true;
   }
@@ -245,8 +256,8 @@ bool check_bit_identical(const Source& source, const Job& job, ConfigResult& cr)
   else if (cmp.series == 0)
     std::printf("NOT bit-identical with %s: no series in common\n", with);
   if (!digest_ok)
-    std::printf("NOT bit-identical with %s: output digest %s replayed, %s recorded\n", with, cr.digest.c_str(),
-                recorded_digest.c_str());
+    std::printf("NOT bit-identical with %s: output digest %s replayed, %s recorded (%s)\n", with, cr.digest.c_str(),
+                recorded_digest.c_str(), cr.digest_algorithm.c_str());
   return false;
 }
 
@@ -292,6 +303,7 @@ std::optional<int> replay_one(const ReplayContext& ctx, const Job& job, ConfigRe
   options.local_control = false;  // a replay is not commanded
   options.simulated = true;
   options.record_path = job.output;
+  options.digest = ctx.source.digest;
   auto services = RunServices::start(*p, sched, events, options);
   if (!services) {
     std::fprintf(stderr, "lode: replay: %s; nothing was replayed\n", services.error().c_str());
@@ -316,6 +328,7 @@ std::optional<int> replay_one(const ReplayContext& ctx, const Job& job, ConfigRe
   cr.wall_s = outcome->wall_s;
   cr.speed = cr.wall_s > 0 ? static_cast<double>(cr.cycles) / p->rate_hz() / cr.wall_s : 0.0;
   cr.digest = (*services)->output_digest();
+  cr.digest_algorithm = digest_algorithm_name((*services)->output_digest_algorithm());
   std::printf("%s: %llu cycles in %.3f s wall, %.0fx real time (%g Hz)\n", job.label.c_str(),
               static_cast<unsigned long long>(cr.cycles), cr.wall_s, cr.speed, p->rate_hz());
   if (outcome->faulted) {

@@ -138,6 +138,7 @@ struct ConfigResult {
   std::uint64_t cycles = 0;
   double wall_s = 0, speed = 0;
   std::string digest;
+  std::string digest_algorithm;  ///< the recording's (output_digest_algorithm)
   std::string reference;    ///< "" when none
   std::vector<EstimatorStats> estimators;
   std::vector<std::string> notes;

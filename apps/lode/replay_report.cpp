@@ -56,6 +56,7 @@ ReplayReport replay_report(const std::string& recording, const std::string& pipe
     cj["wall_s"] = cr.wall_s;
     cj["speed_vs_realtime"] = cr.speed;
     cj["output_digest"] = cr.digest;
+    cj["output_digest_algorithm"] = cr.digest_algorithm;
     cj["reference"] = cr.reference.empty() ? Json() : Json(cr.reference);
     Json notes = Json::array();
     for (const auto& n : cr.notes) notes.push(n);

@@ -11,9 +11,9 @@
 namespace lode::cli {
 
 RunRecorder::RunRecorder(const Pipeline& pipeline, Scheduler& scheduler, EventLog& events,
-                         std::function<std::string()> digest)
-    : pipeline_(pipeline), scheduler_(scheduler), events_(events), stats_(scheduler.stats()),
-      digest_text_(std::move(digest)), tap_(pipeline.signals()) {
+                         const OutputDigest& digest)
+    : pipeline_(pipeline), scheduler_(scheduler), events_(events), stats_(scheduler.stats()), digest_(digest),
+      tap_(pipeline.signals()) {
   char host[256] = "host";
   gethostname(host, sizeof host - 1);
   hostname_ = host;
@@ -178,7 +178,8 @@ Status RunRecorder::close_locked() {
   // dropped). Otherwise say why there is none rather than claim a wrong one.
   const bool whole_run = from_start_ && !running_.load() && dropped == 0;
   if (whole_run) {
-    recorder_->set_attribute("output_digest", digest_text_());
+    recorder_->set_attribute("output_digest", digest_.text());
+    recorder_->set_attribute(kDigestAlgorithmKey, digest_algorithm_name(digest_.algorithm()));
   } else {
     recorder_->set_attribute("recording_partial",
                             !from_start_ ? "recording started mid-run (first cycle " +

@@ -6,7 +6,6 @@
 
 #include <atomic>
 #include <chrono>
-#include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -20,14 +19,16 @@
 #include "lode/record/hdf5_recorder.hpp"
 #include "lode/scheduler.hpp"
 #include "lode/telemetry.hpp"
+#include "output_digest.hpp"
 
 namespace lode::cli {
 
 class RunRecorder {
  public:
   /// Reads what produced the run (plugin files, io blocks) now, before the RT thread runs:
-  /// describe() reads every block. `digest` gives the output digest when a whole run closes.
-  RunRecorder(const Pipeline& pipeline, Scheduler& scheduler, EventLog& events, std::function<std::string()> digest);
+  /// describe() reads every block. `digest` (which outlives the recorder) gives the output
+  /// digest and its algorithm when a whole run closes.
+  RunRecorder(const Pipeline& pipeline, Scheduler& scheduler, EventLog& events, const OutputDigest& digest);
 
   /// The hook to add to the scheduler (RT side: copies the outputs while a file is open).
   [[nodiscard]] CycleHook& hook() { return tap_; }
@@ -72,7 +73,7 @@ class RunRecorder {
   Scheduler& scheduler_;
   EventLog& events_;
   const RunStats& stats_;
-  std::function<std::string()> digest_text_;
+  const OutputDigest& digest_;
   Tap tap_;
   std::string hostname_;
   std::vector<std::string> io_blocks_;  // their outputs are the raw inputs replay plays back

@@ -27,26 +27,6 @@ namespace lode::cli {
 
 namespace {
 
-/// FNV-1a over the bit patterns of every output, every cycle. RT-safe: a few ns per value.
-class OutputDigest final : public CycleHook {
- public:
-  explicit OutputDigest(std::vector<SignalRef> signals) : signals_(std::move(signals)) {}
-  void after_cycle(const Tick&) noexcept override {
-    for (const auto& s : signals_) {
-      const auto* bytes = reinterpret_cast<const unsigned char*>(s.data);
-      for (std::size_t i = 0; i < s.size() * sizeof(double); ++i) {
-        hash_ ^= bytes[i];
-        hash_ *= 0x100000001b3ULL;
-      }
-    }
-  }
-  [[nodiscard]] std::uint64_t value() const { return hash_; }
-
- private:
-  std::vector<SignalRef> signals_;
-  std::uint64_t hash_ = 0xcbf29ce484222325ULL;
-};
-
 std::string hostname() {
   char host[256] = "host";
   gethostname(host, sizeof host - 1);
@@ -76,12 +56,6 @@ struct RunServices::Impl {
   std::uint64_t last_published = 0;
   std::chrono::steady_clock::time_point last_progress = std::chrono::steady_clock::now();
   bool stall_reported = false;
-
-  [[nodiscard]] std::string digest_text() const {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(digest->value()));
-    return buf;
-  }
 };
 
 RunServices::RunServices() : impl_(std::make_unique<Impl>()) {}
@@ -102,6 +76,11 @@ Expected<std::unique_ptr<RunServices>> RunServices::start(Pipeline& pipeline, Sc
   im.spec = pipeline.telemetry();
   if (options.domain) im.spec.domain = *options.domain;
   const bool telemetry = im.spec.enabled && options.telemetry;
+  // A simulated run (lode run --clock sim, lode replay) times the ops of one cycle in eight:
+  // timing every op of every cycle was a fifth of kawato_planar's simulated cycle, and the
+  // per-block statistics it reports (summary, timing topic, replay's median step) need the
+  // distribution, not every sample. A real-clock run times every cycle: its worst case matters.
+  if (options.simulated) scheduler.set_simulated_timing_stride(kSimulatedTimingStride);
 
   // Order on the RT thread: swaps and commands before the cycle; taps and digest after it.
   // The command service always exists: the local socket reaches it without Fast DDS, the
@@ -111,9 +90,9 @@ Expected<std::unique_ptr<RunServices>> RunServices::start(Pipeline& pipeline, Sc
   im.control = std::make_unique<ControlService>(pipeline, events);
   scheduler.add_hook(im.control.get());
   im.control->set_swap_handler([hs = im.hot_swap.get()](const ControlRequest& r) { return hs->handle(r); });
-  im.digest = std::make_unique<OutputDigest>(pipeline.signals());
+  im.digest = std::make_unique<OutputDigest>(pipeline.signals(), options.digest);
   scheduler.add_hook(im.digest.get());
-  im.recorder = std::make_unique<RunRecorder>(pipeline, scheduler, events, [&im] { return im.digest_text(); });
+  im.recorder = std::make_unique<RunRecorder>(pipeline, scheduler, events, *im.digest);
   scheduler.add_hook(&im.recorder->hook());
   im.control->set_record_handler([&im](const ControlRequest& r) { return im.recorder->handle(r); });
   if (!options.record_path.empty()) {
@@ -237,7 +216,9 @@ void RunServices::finish() {
   }
 }
 
-std::string RunServices::output_digest() const { return impl_->digest_text(); }
+std::string RunServices::output_digest() const { return impl_->digest->text(); }
+
+DigestAlgorithm RunServices::output_digest_algorithm() const { return impl_->digest->algorithm(); }
 
 const std::vector<std::string>& RunServices::io_blocks() const { return impl_->recorder->io_blocks(); }
 
@@ -281,6 +262,7 @@ Json RunServices::summary() const {
   const Impl& im = *impl_;
   Json j = Json::object();
   j["output_digest"] = output_digest();
+  j[kDigestAlgorithmKey] = digest_algorithm_name(output_digest_algorithm());
   if (im.telemetry_tap) {
     Json t = Json::object();
     t["domain"] = static_cast<std::int64_t>(im.spec.domain);

@@ -18,8 +18,12 @@
 #include "lode/scheduler.hpp"
 #include "lode/dds/bridge.hpp"
 #include "lode/sdk/status.hpp"
+#include "output_digest.hpp"
 
 namespace lode::cli {
+
+/// On the simulated clock, the ops of one cycle in this many are timed (Scheduler).
+inline constexpr std::uint64_t kSimulatedTimingStride = 8;
 
 struct RunServiceOptions {
   bool telemetry = true;             ///< start the DDS bridge when the YAML has `telemetry:`
@@ -31,6 +35,8 @@ struct RunServiceOptions {
   /// Serve commands on the local socket ($XDG_RUNTIME_DIR/lode/PIPELINE.sock). A second run
   /// of the same pipeline on this host is refused while the first one holds it.
   bool local_control = true;
+  /// The output digest's hash: XXH3-64 for a run; a replay uses what its recording names.
+  DigestAlgorithm digest = DigestAlgorithm::xxh3_64;
 };
 
 class RunServices {
@@ -49,13 +55,16 @@ class RunServices {
   void on_idle();
   /// End of run: stop recording, publish the rest, close the participant.
   void finish();
-  /// {telemetry: {...}, recording: {...}, output_digest: "..."} for the summary.
+  /// {telemetry: {...}, recording: {...}, output_digest: "...", output_digest_algorithm: "..."}
+  /// for the summary.
   [[nodiscard]] Json summary() const;
   /// True when the DDS publisher could not be stopped (stuck inside Fast DDS): the caller
   /// must leave with _exit() after writing its results, since destructors would hang.
   [[nodiscard]] bool dds_stuck() const { return dds_stuck_; }
-  /// 64-bit FNV-1a over the bits of every output of every cycle, as 16 hex digits.
+  /// The 64-bit hash of the bits of every output of every cycle, as 16 hex digits.
   [[nodiscard]] std::string output_digest() const;
+  /// Which hash output_digest() is (RunServiceOptions::digest).
+  [[nodiscard]] DigestAlgorithm output_digest_algorithm() const;
   /// Blocks whose plugin is of kind io (their outputs are recorded as kind "raw").
   [[nodiscard]] const std::vector<std::string>& io_blocks() const;
 

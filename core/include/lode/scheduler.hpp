@@ -114,6 +114,9 @@ class Scheduler {
   void add_tap(SignalTap* tap) { add_hook(tap); }
   /// Measure per-op execution time (two clock reads per op).
   void set_time_ops(bool on) { time_ops_ = on; }
+  /// On the simulated clock, measure the ops of one cycle in `n` only (default 1: every
+  /// cycle); the real clock always measures every cycle.
+  void set_simulated_timing_stride(std::uint64_t n) { simulated_timing_stride_ = n > 0 ? n : 1; }
 
   /// Run `cycles` cycles (0 = until `stop` is set). `on_idle` runs on the calling thread,
   /// never on the RT thread. The pipeline must be active.
@@ -140,6 +143,7 @@ class Scheduler {
   EventLog& events_;
   std::vector<CycleHook*> hooks_;
   bool time_ops_ = true;
+  std::uint64_t simulated_timing_stride_ = 1;
   RunStats stats_;
   // Fault details written by the RT thread, read after it joins.
   int fault_op_ = -1;
