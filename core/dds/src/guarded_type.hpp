@@ -29,8 +29,8 @@ class MalformedCount {
   std::atomic<std::uint64_t> malformed_{0};
 };
 
-/// `Generated`: a fastddsgen PubSubType. Only decoding sees foreign bytes; serialize() and
-/// getKey() work on samples this process built or already decoded.
+/// `Generated`: a fastddsgen PubSubType. Only decoding sees foreign bytes: serialize() and
+/// getKey() work on samples this process built or decoded, so they cannot throw on them.
 template <typename Generated>
 class Guarded final : public Generated, public MalformedCount {
  public:
