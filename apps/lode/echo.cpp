@@ -149,6 +149,7 @@ int echo(const Args& args) {
                  static_cast<unsigned long long>(out_of_order), why.c_str());
   else
     std::fprintf(stderr, "lode echo: %llu samples (%s)\n", static_cast<unsigned long long>(received), why.c_str());
+  report_malformed(*client, "echo");
   if (latency && !latencies_us.empty()) {
     std::sort(latencies_us.begin(), latencies_us.end());
     auto q = [&](double p) { return latencies_us[static_cast<std::size_t>(p * static_cast<double>(latencies_us.size() - 1))]; };

@@ -161,6 +161,7 @@ int record_topics(const Args& args) {
     return kExitFault;
   }
   std::fprintf(stderr, "lode record: wrote %s (%s)\n", path.c_str(), why.c_str());
+  report_malformed(*client, "record");
   return rc;
 }
 

@@ -163,6 +163,12 @@ std::unique_ptr<dds::Client> make_client(const Args& args, const std::string& ro
   return std::move(*client);
 }
 
+void report_malformed(const dds::Client& client, const char* command) {
+  if (const std::uint64_t n = client.malformed_samples(); n > 0)
+    std::fprintf(stderr, "lode %s: %llu malformed samples dropped (their bytes did not decode as lode_msgs.idl says: "
+                 "a foreign or broken writer on the domain)\n", command, static_cast<unsigned long long>(n));
+}
+
 milliseconds wait_option(const Args& args, double fallback_s) {
   return milliseconds(std::llround(args.number("--wait", fallback_s) * 1e3));
 }

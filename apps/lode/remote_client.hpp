@@ -28,6 +28,10 @@ std::vector<std::string> split_list(const std::string& text);
 /// A DDS client named lode-ROLE-PID@HOST (or --name); nullptr after printing why.
 std::unique_ptr<dds::Client> make_client(const Args& args, const std::string& role);
 
+/// On exit, like lost samples: how many samples `client` dropped because their bytes did not
+/// decode (nothing printed when none were).
+void report_malformed(const dds::Client& client, const char* command);
+
 /// --wait in milliseconds.
 milliseconds wait_option(const Args& args, double fallback_s);
 

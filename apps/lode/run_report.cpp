@@ -96,6 +96,10 @@ void print_run_summary(const Json& summary, const RunFacts& f) {
                  static_cast<unsigned long long>(t->find("samples_offered")->as_number()),
                  static_cast<unsigned long long>(t->find("ring_dropped")->as_number()),
                  static_cast<unsigned long long>(t->find("published") ? t->find("published")->as_number() : 0));
+  if (const auto* t = summary.find("telemetry"); t && t->find("commands_malformed") &&
+                                                 t->find("commands_malformed")->as_number() > 0)
+    say(stdout, Severity::warning, "  WARNING: %llu malformed command samples dropped (not a lode::msg::Command)\n",
+        static_cast<unsigned long long>(t->find("commands_malformed")->as_number()));
   if (const auto* h = summary.find("hot_swap"); h && h->find("swaps")->as_number() > 0)
     std::fprintf(out, "  hot swap: %llu swaps, RT cost per exchange p50 %.0f ns, max %.0f ns; overruns in a swap cycle "
                  "(or the next) %llu\n",

@@ -275,6 +275,7 @@ Json RunServices::summary() const {
       t["published"] = b.published;
       t["commands_accepted"] = b.commands_accepted;
       t["commands_refused"] = b.commands_refused;
+      t["commands_malformed"] = b.commands_malformed;
       t["publisher_stalled"] = im.stall_reported;
       t["clean_shutdown"] = !dds_stuck_;
     }

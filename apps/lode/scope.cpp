@@ -71,6 +71,7 @@ int scope_main(const Args& args) {
   std::fprintf(stderr, "lode scope: %llu samples received, %llu dropped by the scope, %llu page messages dropped\n",
                static_cast<unsigned long long>(c.samples_received), static_cast<unsigned long long>(c.samples_dropped),
                static_cast<unsigned long long>(c.messages_dropped));
+  report_malformed(*client, "scope");
   return kExitOk;
 }
 

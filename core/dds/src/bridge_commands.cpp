@@ -18,8 +18,24 @@ void Bridge::command_loop() {
     while (command_reader_->take_next_sample(&command, &info) == ReturnCode_t::RETCODE_OK) {
       if (info.valid_data) handle_command(command, info);
     }
+    note_malformed_commands();
     wake_lock.lock();
   }
+}
+
+// Fast DDS drops a Command that does not decode before take() sees it; its type support
+// counted it. A flood of them is summed into one event per look (at most 10 a second) and
+// further limited by post_limited, so it cannot grow the event log without bound.
+void Bridge::note_malformed_commands() {
+  const std::uint64_t total = detail::malformed_samples(participant_, detail::type_name_command());
+  const std::uint64_t before = commands_malformed_.exchange(total, std::memory_order_relaxed);
+  if (total <= before) return;
+  events_.post_limited(run_stats_.last_time_ns.load(std::memory_order_relaxed),
+                       run_stats_.cycles.load(std::memory_order_relaxed), "command_malformed",
+                       std::to_string(total - before) + " malformed command sample(s) dropped (" +
+                           std::to_string(total) + " since start): the bytes on " +
+                           pipeline_topic(pipeline_.name(), "command") +
+                           " did not decode as lode::msg::Command (lode_msgs.idl, plain CDR)");
 }
 
 void Bridge::handle_command(const lode::msg::Command& command, const fdds::SampleInfo& info) {

@@ -132,6 +132,7 @@ class Bridge final : public TelemetryBridge {
     s.ring_dropped = tap_.dropped() + write_failures_.load(std::memory_order_relaxed);
     s.commands_accepted = commands_accepted_.load(std::memory_order_relaxed);
     s.commands_refused = commands_refused_.load(std::memory_order_relaxed);
+    s.commands_malformed = commands_malformed_.load(std::memory_order_relaxed);
     return s;
   }
 
@@ -146,6 +147,7 @@ class Bridge final : public TelemetryBridge {
     wake_.notify_all();
     if (publisher_thread_.joinable()) publisher_thread_.join();
     if (command_thread_.joinable()) command_thread_.join();
+    if (command_reader_ != nullptr) note_malformed_commands();  // those dropped since its last look
     // Reliable readers get what was written last (the final samples, the stop event, the
     // last reply) before the participant goes: up to 0.5 s per writer, usually microseconds.
     const eprosima::fastrtps::Duration_t ack_wait(0, 500'000'000);
@@ -231,6 +233,7 @@ class Bridge final : public TelemetryBridge {
   void publish_events();
   void handle_command(const lode::msg::Command& command, const fdds::SampleInfo& info);
   void write_reply(const lode::msg::Command& command, const ControlReply& reply);
+  void note_malformed_commands();
 
   const Pipeline& pipeline_;
   const TelemetrySpec& spec_;
@@ -278,6 +281,7 @@ class Bridge final : public TelemetryBridge {
   std::atomic<std::uint64_t> write_failures_{0};
   std::atomic<std::uint64_t> commands_accepted_{0};
   std::atomic<std::uint64_t> commands_refused_{0};
+  std::atomic<std::uint64_t> commands_malformed_{0};
 };
 
 inline void ParticipantWatcher::on_participant_discovery(fdds::DomainParticipant* /*participant*/,

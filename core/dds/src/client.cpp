@@ -57,6 +57,8 @@ Status ClientImpl::open(const ParticipantOptions& options) {
   return Status::ok();
 }
 
+std::uint64_t ClientImpl::malformed_samples() const { return detail::malformed_samples(participant_); }
+
 fdds::Topic* ClientImpl::find_or_create_topic(const std::string& name, const char* type) {
   std::lock_guard lock(topics_mutex_);
   if (auto* existing = participant_->lookup_topicdescription(name)) {

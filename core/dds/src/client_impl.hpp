@@ -170,6 +170,9 @@ class ClientImpl final : public Client {
   Expected<ControlReply> command(const std::string& pipeline, ControlRequest request,
                                  std::chrono::milliseconds timeout) override;
 
+  // client.cpp
+  [[nodiscard]] std::uint64_t malformed_samples() const override;
+
   fdds::Topic* find_or_create_topic(const std::string& name, const char* type);
   void delete_reader(fdds::DataReader* reader) { subscriber_->delete_datareader(reader); }
 

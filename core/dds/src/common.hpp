@@ -12,6 +12,7 @@
 #include <fastdds/dds/subscriber/qos/DataReaderQos.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
 
+#include "guarded_type.hpp"
 #include "lode/sdk/status.hpp"
 #include "lode_msgsPubSubTypes.h"
 
@@ -26,17 +27,19 @@ namespace fdds = eprosima::fastdds::dds;
 
 inline constexpr const char* kSignalsTopic = "lode/signals";
 
-/// Register every lodestone type with `participant` (idempotent).
+/// Register every lodestone type with `participant` (idempotent), each Guarded: a sample
+/// that does not decode is dropped and counted, never thrown.
 inline Status register_types(fdds::DomainParticipant* participant) {
   const auto one = [&](fdds::TopicDataType* type) -> bool {
     fdds::TypeSupport support(type);
     if (participant->find_type(support.get_type_name()).get() != nullptr) return true;
     return support.register_type(participant) == ReturnCode_t::RETCODE_OK;
   };
-  if (!one(new lode::msg::SignalInfoPubSubType()) || !one(new lode::msg::SignalSamplePubSubType()) ||
-      !one(new lode::msg::StageStatePubSubType()) || !one(new lode::msg::TimingStatsPubSubType()) ||
-      !one(new lode::msg::EventPubSubType()) || !one(new lode::msg::CommandPubSubType()) ||
-      !one(new lode::msg::ReplyPubSubType())) {
+  namespace m = lode::msg;
+  if (!one(new Guarded<m::SignalInfoPubSubType>()) || !one(new Guarded<m::SignalSamplePubSubType>()) ||
+      !one(new Guarded<m::StageStatePubSubType>()) || !one(new Guarded<m::TimingStatsPubSubType>()) ||
+      !one(new Guarded<m::EventPubSubType>()) || !one(new Guarded<m::CommandPubSubType>()) ||
+      !one(new Guarded<m::ReplyPubSubType>())) {
     return Status::error("could not register lodestone's DDS types with the participant");
   }
   return Status::ok();
@@ -54,6 +57,16 @@ inline const char* type_name_timing() { return "lode::msg::TimingStats"; }
 inline const char* type_name_event() { return "lode::msg::Event"; }
 inline const char* type_name_command() { return "lode::msg::Command"; }
 inline const char* type_name_reply() { return "lode::msg::Reply"; }
+
+/// Malformed samples of every lodestone type dropped by the readers of `participant`.
+inline std::uint64_t malformed_samples(fdds::DomainParticipant* participant) {
+  std::uint64_t total = 0;
+  for (const char* type : {type_name_signal_info(), type_name_signal_sample(), type_name_stage_state(),
+                           type_name_timing(), type_name_event(), type_name_command(), type_name_reply()}) {
+    total += malformed_samples(participant, type);
+  }
+  return total;
+}
 
 enum class Durability { volatile_, transient_local };
 

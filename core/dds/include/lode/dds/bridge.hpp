@@ -20,6 +20,7 @@ struct BridgeStats {
   std::uint64_t ring_dropped = 0;       ///< records the RT thread could not hand over
   std::uint64_t commands_accepted = 0;  ///< commands handed to the ControlService
   std::uint64_t commands_refused = 0;   ///< from a host/participant that is not allowed
+  std::uint64_t commands_malformed = 0; ///< dropped: their bytes did not decode as a Command
 };
 
 class TelemetryBridge {

@@ -80,6 +80,9 @@ class Client {
                                          std::chrono::milliseconds timeout) = 0;
   /// Pipelines that have published SignalInfo.
   virtual std::vector<std::string> pipelines(std::chrono::milliseconds wait) = 0;
+  /// Samples dropped so far because their bytes did not decode as the topic's type (a
+  /// foreign or broken writer on the domain): never handed to a callback.
+  [[nodiscard]] virtual std::uint64_t malformed_samples() const = 0;
 };
 
 }  // namespace lode::dds
