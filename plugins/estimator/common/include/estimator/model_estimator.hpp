@@ -114,8 +114,15 @@ class ModelEstimator : public Block, public EstimatorState {
   void propagate(const double* x, const double* u, double* x_next) const noexcept {
     process_->propagate(dt_, x, u, x_next);
   }
-  /// y = h(x) with the measurement model's inputs taken from x and u_.
-  void measure(const double* x, double* y) const noexcept;
+  /// y = h(x) with the measurement model's inputs taken from x and u_. Inline: the UKF calls it
+  /// for each sigma point, and from this library's object code it would go through the PLT.
+  void measure(const double* x, double* y) const noexcept {
+    if (measurement_reads_leading_states_) {  // h's state is x's first elements: no copy
+      measurement_->evaluate(x, y);
+      return;
+    }
+    measure_gathered(x, y);
+  }
   /// y = h(x) and H = dh/dx (m x n; the columns of elements taken from u are dropped).
   void measure_jacobian(const double* x, double* y, ObservationMatrix& H) const noexcept {
     measure_jacobian(x, u_.data(), y, H);
@@ -206,6 +213,8 @@ class ModelEstimator : public Block, public EstimatorState {
 
  private:
   void gather_measurement_state(const double* x, const double* u, double* model_state) const noexcept;
+  /// measure() when h reads process inputs or the states in another order.
+  void measure_gathered(const double* x, double* y) const noexcept;
   void describe_linearisation(Json& out) const;
 
   std::string process_name_;
