@@ -56,17 +56,76 @@ using Storage = Eigen::Matrix<double, R, C, (R == 1 && C != 1) ? Eigen::RowMajor
 /// of a 3-long inner dimension sums as a tree, a0 b0 + (a1 b1 + a2 b2), which changes the last
 /// bit; this keeps a sized instance bit-identical to the dynamic one. a is R x K, b K x C (C x K
 /// transposed), all stored column by column (a single row or column is the same either way).
+/// Forced inline: a cycle makes eight of these products of at most 27 multiplications, and
+/// out of line each went through memory and a call.
 template <int R, int K, int C, bool TransposeB>
-void sequential_product(const double* a, const double* b, double* r) noexcept {
+[[gnu::always_inline]] inline void sequential_product(const double* a, const double* b, double* r) noexcept {
+  // Column j of r accumulates a's columns in k order: each coefficient's sum keeps its order
+  // and the rows of a column are independent, so they can share vector instructions.
 #pragma GCC unroll 4
   for (int j = 0; j < C; ++j) {
+    double sum[R];
 #pragma GCC unroll 4
-    for (int i = 0; i < R; ++i) {
-      double sum = 0.0;
+    for (int i = 0; i < R; ++i) sum[i] = 0.0;
 #pragma GCC unroll 4
-      for (int k = 0; k < K; ++k) sum += a[i + k * R] * (TransposeB ? b[j + k * C] : b[k + j * K]);
-      r[i + j * R] = sum;
+    for (int k = 0; k < K; ++k) {
+      const double factor = TransposeB ? b[j + k * C] : b[k + j * K];
+#pragma GCC unroll 4
+      for (int i = 0; i < R; ++i) sum[i] += a[i + k * R] * factor;
     }
+#pragma GCC unroll 4
+    for (int i = 0; i < R; ++i) r[i + j * R] = sum[i];
+  }
+}
+
+/// r = (A P) A' for N x N A, P (column-major) with the sums of sequential_product, where
+/// unit[k] says that column k of A is exactly e_k. Such a column's terms are A(i,k) P(k,j) =
+/// P(k,j) for i = k and a signed zero otherwise, and a signed zero added to a sum that starts
+/// at +0 leaves it as it was, so they are added or left out without computing them: the same
+/// bits for finite operands. A non-finite P or A makes r non-finite either way (each P(k,j)
+/// reaches r(., j) through a unit column or a product), so the step faults as before.
+template <int N>
+[[gnu::always_inline]] inline void joseph_products(const double* a, const double* p, const bool* unit,
+                                                   double* r) noexcept {
+  double ap[N * N];  // A P
+#pragma GCC unroll 4
+  for (int j = 0; j < N; ++j) {
+    double sum[N];
+#pragma GCC unroll 4
+    for (int i = 0; i < N; ++i) sum[i] = 0.0;
+#pragma GCC unroll 4
+    for (int k = 0; k < N; ++k) {
+      const double factor = p[k + j * N];
+      if (unit[k]) {
+        sum[k] += factor;
+      } else {
+#pragma GCC unroll 4
+        for (int i = 0; i < N; ++i) sum[i] += a[i + k * N] * factor;
+      }
+    }
+#pragma GCC unroll 4
+    for (int i = 0; i < N; ++i) ap[i + j * N] = sum[i];
+  }
+  // (A P) A': r(i, j) = sum_k (A P)(i, k) A(j, k).
+#pragma GCC unroll 4
+  for (int j = 0; j < N; ++j) {
+    double sum[N];
+#pragma GCC unroll 4
+    for (int i = 0; i < N; ++i) sum[i] = 0.0;
+#pragma GCC unroll 4
+    for (int k = 0; k < N; ++k) {
+      if (unit[k]) {
+        if (k != j) continue;
+#pragma GCC unroll 4
+        for (int i = 0; i < N; ++i) sum[i] += ap[i + k * N];
+      } else {
+        const double factor = a[j + k * N];
+#pragma GCC unroll 4
+        for (int i = 0; i < N; ++i) sum[i] += ap[i + k * N] * factor;
+      }
+    }
+#pragma GCC unroll 4
+    for (int i = 0; i < N; ++i) r[i + j * N] = sum[i];
   }
 }
 
@@ -150,16 +209,37 @@ StepStatus ExtendedEstimator::cycle(bool first) noexcept {
   const Vector x = x_prior + product(K, innovation);
   Matrix I_KH = Matrix::Identity(n, n);
   I_KH -= product(K, H);
-  const Matrix I_KH_P = product(I_KH, P_prior);
-  Matrix P = product_transposed(I_KH_P, I_KH);
+  Matrix P;
+  if constexpr (sized) {
+    // A column of H that is exactly zero (a state the measurement does not depend on: the
+    // suspension's velocity and current) makes that column of I - K H exactly e_k.
+    std::array<bool, States> unit;
+#pragma GCC unroll 4
+    for (int k = 0; k < States; ++k) {
+      bool zero = true;
+#pragma GCC unroll 4
+      for (int c = 0; c < Channels; ++c) zero = zero && H(c, k) == 0.0;
+      unit[k] = zero;
+    }
+    joseph_products<States>(I_KH.data(), P_prior.data(), unit.data(), P.data());
+  } else {
+    const Matrix I_KH_P = product(I_KH, P_prior);
+    P = product_transposed(I_KH_P, I_KH);
+  }
   const Gain K_R = product(K, MMatrix(R_));
   P += product_transposed(K_R, K);
   P = (0.5 * (P + P.transpose())).eval();
-  if (!x.allFinite() || !P.allFinite()) return fault("EKF: the updated state or covariance is not finite");
-  x_ = x;
-  P_ = P;
-  innovation_ = innovation;
-  innovation_variance_ = S.diagonal();
+  bool finite = true;
+  if constexpr (sized) {  // element by element: allFinite() is an out-of-line call per matrix
+#pragma GCC unroll 4
+    for (int i = 0; i < States; ++i) finite &= std::isfinite(x(i));
+#pragma GCC unroll 9
+    for (int i = 0; i < States * States; ++i) finite &= std::isfinite(P.data()[i]);
+  } else {
+    finite = x.allFinite() && P.allFinite();
+  }
+  if (!finite) return fault("EKF: the updated state or covariance is not finite");
+  commit_estimate(x, P, innovation, S.diagonal());
   gain_ = K;
   return StepStatus::ok;
 }

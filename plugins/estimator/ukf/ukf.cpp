@@ -71,10 +71,7 @@ StepStatus UnscentedEstimator::cycle(S& sized, bool first) noexcept {
     core.set(x_, P_);
     return fault("UKF: P_yy not positive definite, or the updated state is not finite");
   }
-  x_ = core.x();
-  P_ = core.P();
-  innovation_ = core.innovation();
-  innovation_variance_ = core.innovation_variance();
+  commit_estimate(core.x(), core.P(), core.innovation(), core.innovation_variance());
   return StepStatus::ok;
 }
 

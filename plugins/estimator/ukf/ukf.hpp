@@ -145,6 +145,8 @@ class UnscentedCore {
     innovation_variance_.setZero(m_);
     y_hat_.setZero(m_);
     gain_.setZero(n_, m_);
+    points_mean_.setZero(n_);
+    points_mean_valid_ = false;
   }
 
   /// x and P: any Eigen storage of the configured sizes (e.g. the block's capacity-12 ones).
@@ -154,8 +156,11 @@ class UnscentedCore {
     P_ = P;
   }
 
-  /// eq. 20: points around (x, P). False if (L + lambda) P is not positive definite.
-  bool draw() noexcept {
+  /// eq. 20: points around (x, P). False if (L + lambda) P is not positive definite. Forced
+  /// inline: as a member of a class template in a position-independent plugin it was called
+  /// through the PLT.
+  [[gnu::always_inline]] bool draw() noexcept {
+    points_mean_valid_ = false;
     if constexpr (States == 3) {
       if (!cholesky_3x3(spread_ * P_, factor_)) return false;
     } else {
@@ -340,7 +345,9 @@ class UnscentedCore {
     for (int j = 0; j < N; ++j) {
       centre_(j) = static_cast<Scalar>(base[j]);
       mean[j] = centre_(j) + dbar[j];
+      points_mean_(j) = dbar[j];
     }
+    points_mean_valid_ = true;  // until the points are drawn again
     // cov = W0c dbar dbar' + sum Wi (d_i - dbar)(d_i - dbar)', each term (w d_j) d_k from 0.
 #pragma GCC unroll 12
     for (int k = 0; k < N; ++k) {
@@ -357,24 +364,26 @@ class UnscentedCore {
         for (int j = 0; j < N; ++j) cov[j + k * N] += (wi_ * d[j]) * d[k];
       }
     }
-    // (cov + Q), then 0.5 ((cov + Q) + (cov + Q)'); one finiteness test for all of it.
+    // (cov + Q), then 0.5 ((cov + Q) + (cov + Q)').
 #pragma GCC unroll 12
     for (int k = 0; k < N; ++k) {
 #pragma GCC unroll 12
       for (int j = 0; j < N; ++j) cov[j + k * N] += Q(j, k);
     }
-    Scalar check = Scalar(0);  // NaN exactly when some element is not finite
+    // One test for all of it at the end, from independent per-element tests (a chain of
+    // dependent sums would wait on each add).
+    bool finite = true;
     Matrix P;
 #pragma GCC unroll 12
     for (int k = 0; k < N; ++k) {
 #pragma GCC unroll 12
       for (int j = 0; j < N; ++j) {
         P(j, k) = Scalar(0.5) * (cov[j + k * N] + cov[k + j * N]);
-        check += P(j, k) * Scalar(0);
+        finite &= std::isfinite(P(j, k));
       }
-      check += mean[k] * Scalar(0);
+      finite &= std::isfinite(mean[k]);
     }
-    if (check != Scalar(0)) return false;
+    if (!finite) return false;
 #pragma GCC unroll 12
     for (int j = 0; j < N; ++j) x_(j) = mean[j];
     P_ = P;
@@ -399,13 +408,20 @@ class UnscentedCore {
       h(x.data(), &out);
       upsilon_(0, i) = static_cast<Scalar>(out - base);
     }
-    std::array<Scalar, N> x_dev{};  // x^- relative to the centre point
-    Scalar y_dev = Scalar(0);       // y^ relative to Y_0
-    for (int i = 1; i < 2 * N + 1; ++i) {
+    // x^- relative to the centre point: the same sum as the prediction's, which left it in
+    // points_mean_ when these are its points.
+    std::array<Scalar, N> x_dev{};
+    if (points_mean_valid_) {
 #pragma GCC unroll 12
-      for (int j = 0; j < N; ++j) x_dev[j] += wi_ * chi_(j, i);
-      y_dev += wi_ * upsilon_(0, i);
+      for (int j = 0; j < N; ++j) x_dev[j] = points_mean_(j);
+    } else {
+      for (int i = 1; i < 2 * N + 1; ++i) {
+#pragma GCC unroll 12
+        for (int j = 0; j < N; ++j) x_dev[j] += wi_ * chi_(j, i);
+      }
     }
+    Scalar y_dev = Scalar(0);  // y^ relative to Y_0
+    for (int i = 1; i < 2 * N + 1; ++i) y_dev += wi_ * upsilon_(0, i);
     const Scalar y_centre = static_cast<Scalar>(base);
     const Scalar y_hat = y_centre + y_dev;
     Scalar Pyy = r;
@@ -427,11 +443,11 @@ class UnscentedCore {
     for (int j = 0; j < N; ++j) K[j] = (Pxy[j] * inverse_root) * inverse_root;
     const Scalar innovation = (y - y_centre) - y_dev;  // no cancellation of |y|
     std::array<Scalar, N> x_new;
-    Scalar check = Scalar(0);  // NaN exactly when some element is not finite
+    bool finite = true;
 #pragma GCC unroll 12
     for (int j = 0; j < N; ++j) {
       x_new[j] = x_(j) + K[j] * innovation;  // eq. 30
-      check += x_new[j] * Scalar(0);
+      finite &= std::isfinite(x_new[j]);
     }
     std::array<Scalar, N * N> P;  // eq. 31: P^- - K P_yy K'
 #pragma GCC unroll 12
@@ -445,10 +461,10 @@ class UnscentedCore {
 #pragma GCC unroll 12
       for (int j = 0; j < N; ++j) {
         P_sym(j, k) = Scalar(0.5) * (P[j + k * N] + P[k + j * N]);
-        check += P_sym(j, k) * Scalar(0);
+        finite &= std::isfinite(P_sym(j, k));
       }
     }
-    if (check != Scalar(0)) return false;
+    if (!finite) return false;
 #pragma GCC unroll 12
     for (int j = 0; j < N; ++j) {
       x_(j) = x_new[j];
@@ -562,6 +578,8 @@ class UnscentedCore {
   Gain gain_;
   Eigen::LLT<Matrix> llt_;
   Matrix factor_;  ///< the lower Cholesky factor of (L + lambda) P
+  Vector points_mean_;              ///< sum_{i>=1} Wi d_i of the current points (sized prediction)
+  bool points_mean_valid_ = false;  ///< the prediction has formed points_mean_ from chi_ as it is
 };
 
 }  // namespace ukf
