@@ -36,11 +36,17 @@ Status ExtendedEstimator::prepare_filter(Params& params) {
   }
   gain_.setZero(static_cast<Eigen::Index>(n_), static_cast<Eigen::Index>(m_));
   fixed_ = compile_time_sizes_ && n_ == 3 && m_ == 1;
+  measures_first_state_only_ = measurement_reads_first_state_only();
+  if (fixed_) {
+    q_sized_ = Q_;
+    r_sized_ = R_;
+  }
   return Status::ok();
 }
 
 StepStatus ExtendedEstimator::filter_cycle(bool first) noexcept {
-  return fixed_ ? cycle<3, 1>(first) : cycle<Eigen::Dynamic, Eigen::Dynamic>(first);
+  if (!fixed_) return cycle<Eigen::Dynamic, Eigen::Dynamic, false>(first);
+  return measures_first_state_only_ ? cycle<3, 1, true>(first) : cycle<3, 1, false>(first);
 }
 
 namespace {
@@ -131,7 +137,7 @@ template <int N>
 
 }  // namespace
 
-template <int States, int Channels>
+template <int States, int Channels, bool FirstStateOnly>
 StepStatus ExtendedEstimator::cycle(bool first) noexcept {
   constexpr int kN = nonlinear::kMaxStates;
   constexpr int kM = nonlinear::kMaxChannels;
@@ -166,9 +172,32 @@ StepStatus ExtendedEstimator::cycle(bool first) noexcept {
   };
   const auto product = [&](const auto& a, const auto& b) { return multiply(a, b, std::false_type{}); };
   const auto product_transposed = [&](const auto& a, const auto& b) { return multiply(a, b, std::true_type{}); };
-  const Vector x_post = x_;
+  // Q_k and R in storage of the cycle's own sizes, so that no capacity-sized operand enters
+  // the sized products.
+  const auto& Q = [&]() -> const auto& {
+    if constexpr (sized) {
+      return q_sized_;
+    } else {
+      return Q_;
+    }
+  }();
+  const auto& R = [&]() -> const auto& {
+    if constexpr (sized) {
+      return r_sized_;
+    } else {
+      return R_;
+    }
+  }();
+  Vector x_post;
+  Matrix P_prior;
+  if constexpr (sized) {  // element by element: Eigen's copy from capacity-sized storage calls memmove
+    for (int i = 0; i < States; ++i) x_post(i) = x_.data()[i];
+    for (int i = 0; i < States * States; ++i) P_prior.data()[i] = P_.data()[i];
+  } else {
+    x_post = x_;
+    P_prior = P_;
+  }
   Vector x_prior = x_post;
-  Matrix P_prior = P_;
   if (!first) {
     // Time update about x_{k-1|k-1} with u_{k-1}.
     const Matrix P_post = P_prior;
@@ -181,16 +210,26 @@ StepStatus ExtendedEstimator::cycle(bool first) noexcept {
     propagate(x_post.data(), x_prior.data());
     const Matrix F_P = product(F, P_post);
     P_prior = product_transposed(F_P, F);
-    P_prior += Q_;
+    P_prior += Q;
   }
   // Measurement update about x_{k|k-1}.
   Observation H;
   MVector y_hat;
   y_hat.resize(m);
   measure_jacobian_into(x_prior.data(), u_.data(), y_hat.data(), H);
-  const Observation H_P = product(H, P_prior);
-  MMatrix S = R_;
-  S += product_transposed(H_P, H);
+  Observation H_P;
+  MMatrix S = R;
+  if constexpr (FirstStateOnly) {
+    // H = [h 0 ... 0]: the products' terms in H's zero columns are signed zeros added to
+    // sums that start at +0, which leave them as they are (P is finite here, or the update
+    // faults either way), so they are left out.
+#pragma GCC unroll 4
+    for (int j = 0; j < States; ++j) H_P(0, j) = 0.0 + H(0, 0) * P_prior(0, j);
+    S(0, 0) += 0.0 + H_P(0, 0) * H(0, 0);
+  } else {
+    H_P = product(H, P_prior);
+    S += product_transposed(H_P, H);
+  }
   Gain K;
   if constexpr (Channels == 1) {
     // S is a number: its Cholesky factor is sqrt(S) and the two triangular solves scale by
@@ -208,9 +247,19 @@ StepStatus ExtendedEstimator::cycle(bool first) noexcept {
   const MVector innovation = MVector(y_) - y_hat;
   const Vector x = x_prior + product(K, innovation);
   Matrix I_KH = Matrix::Identity(n, n);
-  I_KH -= product(K, H);
   Matrix P;
-  if constexpr (sized) {
+  if constexpr (FirstStateOnly) {
+    // I - K H differs from I in its first column alone (I - (0 + K_i 0) = I exactly).
+#pragma GCC unroll 4
+    for (int i = 0; i < States; ++i) I_KH(i, 0) -= 0.0 + K(i, 0) * H(0, 0);
+    constexpr std::array<bool, States> unit = [] {
+      std::array<bool, States> u{};
+      for (int k = 1; k < States; ++k) u[static_cast<std::size_t>(k)] = true;
+      return u;
+    }();
+    joseph_products<States>(I_KH.data(), P_prior.data(), unit.data(), P.data());
+  } else if constexpr (sized) {
+    I_KH -= product(K, H);
     // A column of H that is exactly zero (a state the measurement does not depend on: the
     // suspension's velocity and current) makes that column of I - K H exactly e_k.
     std::array<bool, States> unit;
@@ -223,10 +272,11 @@ StepStatus ExtendedEstimator::cycle(bool first) noexcept {
     }
     joseph_products<States>(I_KH.data(), P_prior.data(), unit.data(), P.data());
   } else {
+    I_KH -= product(K, H);
     const Matrix I_KH_P = product(I_KH, P_prior);
     P = product_transposed(I_KH_P, I_KH);
   }
-  const Gain K_R = product(K, MMatrix(R_));
+  const Gain K_R = product(K, MMatrix(R));
   P += product_transposed(K_R, K);
   P = (0.5 * (P + P.transpose())).eval();
   bool finite = true;

@@ -196,8 +196,10 @@ class UnscentedCore {
 
   /// eq. 22-24: push the points through f and form x^-, P^- (+ Q). The state is committed
   /// only if finite; returns false otherwise.
+  // predict() and update() are forced inline (into the block's cycle) for the same reason
+  // as draw().
   template <class F, class Cov>
-  bool predict(F&& f, const Cov& Q) noexcept {
+  [[gnu::always_inline]] bool predict(F&& f, const Cov& Q) noexcept {
     if constexpr (kSized) {
       if (sums_ == Sums::about_centre) return predict_sized(f, Q);
     }
@@ -231,7 +233,7 @@ class UnscentedCore {
 
   /// eq. 25-31 with the current points (propagated, or drawn when there was no prediction).
   template <class H, class Y, class Noise>
-  bool update(H&& h, const Y& y, const Noise& R) noexcept {
+  [[gnu::always_inline]] bool update(H&& h, const Y& y, const Noise& R) noexcept {
     if constexpr (kSized && Channels == 1) {
       if (sums_ == Sums::about_centre) return update_sized(h, y(0), R(0, 0));
     }
@@ -321,7 +323,7 @@ class UnscentedCore {
   /// moments, + Q, the symmetrisation and the finiteness check in one pass over registers
   /// instead of four over Eigen temporaries.
   template <class F, class Cov>
-  bool predict_sized(F& f, const Cov& Q) noexcept {
+  [[gnu::always_inline]] bool predict_sized(F& f, const Cov& Q) noexcept {
     constexpr int N = States;
     std::array<double, N> x, base, next;
 #pragma GCC unroll 12
@@ -355,13 +357,16 @@ class UnscentedCore {
       for (int j = 0; j < N; ++j) cov[j + k * N] = Scalar(0) + (wc0_ * dbar[j]) * dbar[k];
     }
     for (int i = 1; i < 2 * N + 1; ++i) {
-      std::array<Scalar, N> d;
+      std::array<Scalar, N> d, weighted;
 #pragma GCC unroll 12
-      for (int j = 0; j < N; ++j) d[j] = chi_(j, i) - dbar[j];
+      for (int j = 0; j < N; ++j) {
+        d[j] = chi_(j, i) - dbar[j];
+        weighted[j] = wi_ * d[j];
+      }
 #pragma GCC unroll 12
       for (int k = 0; k < N; ++k) {
 #pragma GCC unroll 12
-        for (int j = 0; j < N; ++j) cov[j + k * N] += (wi_ * d[j]) * d[k];
+        for (int j = 0; j < N; ++j) cov[j + k * N] += weighted[j] * d[k];
       }
     }
     // (cov + Q), then 0.5 ((cov + Q) + (cov + Q)').
@@ -393,7 +398,7 @@ class UnscentedCore {
   /// update() for sizes known at compile time and one channel, sums about the centre point:
   /// the generic code's operations in its order, as scalars (P_yy is a number).
   template <class H>
-  bool update_sized(H& h, Scalar y, Scalar r) noexcept {
+  [[gnu::always_inline]] bool update_sized(H& h, Scalar y, Scalar r) noexcept {
     constexpr int N = States;
     std::array<double, N> x;
     double base = 0.0;

@@ -109,6 +109,12 @@ class ModelEstimator : public Block, public EstimatorState {
   virtual StepStatus filter_cycle(bool first) noexcept = 0;
   virtual void describe_filter(Json& out) const = 0;
 
+  /// h depends on the first process state and nothing else (e.g. the suspension's gap): its
+  /// Jacobian is zero beyond the first column.
+  [[nodiscard]] bool measurement_reads_first_state_only() const noexcept {
+    return measurement_reads_leading_states_ && measurement_state_.size() == 1;
+  }
+
   /// x_, P_, innovation_ and innovation_variance_ = the cycle's results. From storage sized at
   /// compile time, element by element into the capacity-sized members (already n and m long
   /// since configure()): Eigen's assignment between the two checks and resizes each time.
