@@ -36,11 +36,17 @@ Status ExtendedEstimator::prepare_filter(Params& params) {
   }
   gain_.setZero(static_cast<Eigen::Index>(n_), static_cast<Eigen::Index>(m_));
   fixed_ = compile_time_sizes_ && n_ == 3 && m_ == 1;
+  measures_first_state_only_ = measurement_reads_first_state_only();
+  if (fixed_) {
+    q_sized_ = Q_;
+    r_sized_ = R_;
+  }
   return Status::ok();
 }
 
 StepStatus ExtendedEstimator::filter_cycle(bool first) noexcept {
-  return fixed_ ? cycle<3, 1>(first) : cycle<Eigen::Dynamic, Eigen::Dynamic>(first);
+  if (!fixed_) return cycle<Eigen::Dynamic, Eigen::Dynamic, false>(first);
+  return measures_first_state_only_ ? cycle<3, 1, true>(first) : cycle<3, 1, false>(first);
 }
 
 namespace {
@@ -56,23 +62,82 @@ using Storage = Eigen::Matrix<double, R, C, (R == 1 && C != 1) ? Eigen::RowMajor
 /// of a 3-long inner dimension sums as a tree, a0 b0 + (a1 b1 + a2 b2), which changes the last
 /// bit; this keeps a sized instance bit-identical to the dynamic one. a is R x K, b K x C (C x K
 /// transposed), all stored column by column (a single row or column is the same either way).
+/// Forced inline: a cycle makes eight of these products of at most 27 multiplications, and
+/// out of line each went through memory and a call.
 template <int R, int K, int C, bool TransposeB>
-void sequential_product(const double* a, const double* b, double* r) noexcept {
+[[gnu::always_inline]] inline void sequential_product(const double* a, const double* b, double* r) noexcept {
+  // Column j of r accumulates a's columns in k order: each coefficient's sum keeps its order
+  // and the rows of a column are independent, so they can share vector instructions.
 #pragma GCC unroll 4
   for (int j = 0; j < C; ++j) {
+    double sum[R];
 #pragma GCC unroll 4
-    for (int i = 0; i < R; ++i) {
-      double sum = 0.0;
+    for (int i = 0; i < R; ++i) sum[i] = 0.0;
 #pragma GCC unroll 4
-      for (int k = 0; k < K; ++k) sum += a[i + k * R] * (TransposeB ? b[j + k * C] : b[k + j * K]);
-      r[i + j * R] = sum;
+    for (int k = 0; k < K; ++k) {
+      const double factor = TransposeB ? b[j + k * C] : b[k + j * K];
+#pragma GCC unroll 4
+      for (int i = 0; i < R; ++i) sum[i] += a[i + k * R] * factor;
     }
+#pragma GCC unroll 4
+    for (int i = 0; i < R; ++i) r[i + j * R] = sum[i];
+  }
+}
+
+/// r = (A P) A' for N x N A, P (column-major) with the sums of sequential_product, where
+/// unit[k] says that column k of A is exactly e_k. Such a column's terms are A(i,k) P(k,j) =
+/// P(k,j) for i = k and a signed zero otherwise, and a signed zero added to a sum that starts
+/// at +0 leaves it as it was, so they are added or left out without computing them: the same
+/// bits for finite operands. A non-finite P or A makes r non-finite either way (each P(k,j)
+/// reaches r(., j) through a unit column or a product), so the step faults as before.
+template <int N>
+[[gnu::always_inline]] inline void joseph_products(const double* a, const double* p, const bool* unit,
+                                                   double* r) noexcept {
+  double ap[N * N];  // A P
+#pragma GCC unroll 4
+  for (int j = 0; j < N; ++j) {
+    double sum[N];
+#pragma GCC unroll 4
+    for (int i = 0; i < N; ++i) sum[i] = 0.0;
+#pragma GCC unroll 4
+    for (int k = 0; k < N; ++k) {
+      const double factor = p[k + j * N];
+      if (unit[k]) {
+        sum[k] += factor;
+      } else {
+#pragma GCC unroll 4
+        for (int i = 0; i < N; ++i) sum[i] += a[i + k * N] * factor;
+      }
+    }
+#pragma GCC unroll 4
+    for (int i = 0; i < N; ++i) ap[i + j * N] = sum[i];
+  }
+  // (A P) A': r(i, j) = sum_k (A P)(i, k) A(j, k).
+#pragma GCC unroll 4
+  for (int j = 0; j < N; ++j) {
+    double sum[N];
+#pragma GCC unroll 4
+    for (int i = 0; i < N; ++i) sum[i] = 0.0;
+#pragma GCC unroll 4
+    for (int k = 0; k < N; ++k) {
+      if (unit[k]) {
+        if (k != j) continue;
+#pragma GCC unroll 4
+        for (int i = 0; i < N; ++i) sum[i] += ap[i + k * N];
+      } else {
+        const double factor = a[j + k * N];
+#pragma GCC unroll 4
+        for (int i = 0; i < N; ++i) sum[i] += ap[i + k * N] * factor;
+      }
+    }
+#pragma GCC unroll 4
+    for (int i = 0; i < N; ++i) r[i + j * N] = sum[i];
   }
 }
 
 }  // namespace
 
-template <int States, int Channels>
+template <int States, int Channels, bool FirstStateOnly>
 StepStatus ExtendedEstimator::cycle(bool first) noexcept {
   constexpr int kN = nonlinear::kMaxStates;
   constexpr int kM = nonlinear::kMaxChannels;
@@ -107,9 +172,32 @@ StepStatus ExtendedEstimator::cycle(bool first) noexcept {
   };
   const auto product = [&](const auto& a, const auto& b) { return multiply(a, b, std::false_type{}); };
   const auto product_transposed = [&](const auto& a, const auto& b) { return multiply(a, b, std::true_type{}); };
-  const Vector x_post = x_;
+  // Q_k and R in storage of the cycle's own sizes, so that no capacity-sized operand enters
+  // the sized products.
+  const auto& Q = [&]() -> const auto& {
+    if constexpr (sized) {
+      return q_sized_;
+    } else {
+      return Q_;
+    }
+  }();
+  const auto& R = [&]() -> const auto& {
+    if constexpr (sized) {
+      return r_sized_;
+    } else {
+      return R_;
+    }
+  }();
+  Vector x_post;
+  Matrix P_prior;
+  if constexpr (sized) {  // element by element: Eigen's copy from capacity-sized storage calls memmove
+    for (int i = 0; i < States; ++i) x_post(i) = x_.data()[i];
+    for (int i = 0; i < States * States; ++i) P_prior.data()[i] = P_.data()[i];
+  } else {
+    x_post = x_;
+    P_prior = P_;
+  }
   Vector x_prior = x_post;
-  Matrix P_prior = P_;
   if (!first) {
     // Time update about x_{k-1|k-1} with u_{k-1}.
     const Matrix P_post = P_prior;
@@ -122,16 +210,26 @@ StepStatus ExtendedEstimator::cycle(bool first) noexcept {
     propagate(x_post.data(), x_prior.data());
     const Matrix F_P = product(F, P_post);
     P_prior = product_transposed(F_P, F);
-    P_prior += Q_;
+    P_prior += Q;
   }
   // Measurement update about x_{k|k-1}.
   Observation H;
   MVector y_hat;
   y_hat.resize(m);
   measure_jacobian_into(x_prior.data(), u_.data(), y_hat.data(), H);
-  const Observation H_P = product(H, P_prior);
-  MMatrix S = R_;
-  S += product_transposed(H_P, H);
+  Observation H_P;
+  MMatrix S = R;
+  if constexpr (FirstStateOnly) {
+    // H = [h 0 ... 0]: the products' terms in H's zero columns are signed zeros added to
+    // sums that start at +0, which leave them as they are (P is finite here, or the update
+    // faults either way), so they are left out.
+#pragma GCC unroll 4
+    for (int j = 0; j < States; ++j) H_P(0, j) = 0.0 + H(0, 0) * P_prior(0, j);
+    S(0, 0) += 0.0 + H_P(0, 0) * H(0, 0);
+  } else {
+    H_P = product(H, P_prior);
+    S += product_transposed(H_P, H);
+  }
   Gain K;
   if constexpr (Channels == 1) {
     // S is a number: its Cholesky factor is sqrt(S) and the two triangular solves scale by
@@ -149,17 +247,49 @@ StepStatus ExtendedEstimator::cycle(bool first) noexcept {
   const MVector innovation = MVector(y_) - y_hat;
   const Vector x = x_prior + product(K, innovation);
   Matrix I_KH = Matrix::Identity(n, n);
-  I_KH -= product(K, H);
-  const Matrix I_KH_P = product(I_KH, P_prior);
-  Matrix P = product_transposed(I_KH_P, I_KH);
-  const Gain K_R = product(K, MMatrix(R_));
+  Matrix P;
+  if constexpr (FirstStateOnly) {
+    // I - K H differs from I in its first column alone (I - (0 + K_i 0) = I exactly).
+#pragma GCC unroll 4
+    for (int i = 0; i < States; ++i) I_KH(i, 0) -= 0.0 + K(i, 0) * H(0, 0);
+    constexpr std::array<bool, States> unit = [] {
+      std::array<bool, States> u{};
+      for (int k = 1; k < States; ++k) u[static_cast<std::size_t>(k)] = true;
+      return u;
+    }();
+    joseph_products<States>(I_KH.data(), P_prior.data(), unit.data(), P.data());
+  } else if constexpr (sized) {
+    I_KH -= product(K, H);
+    // A column of H that is exactly zero (a state the measurement does not depend on: the
+    // suspension's velocity and current) makes that column of I - K H exactly e_k.
+    std::array<bool, States> unit;
+#pragma GCC unroll 4
+    for (int k = 0; k < States; ++k) {
+      bool zero = true;
+#pragma GCC unroll 4
+      for (int c = 0; c < Channels; ++c) zero = zero && H(c, k) == 0.0;
+      unit[k] = zero;
+    }
+    joseph_products<States>(I_KH.data(), P_prior.data(), unit.data(), P.data());
+  } else {
+    I_KH -= product(K, H);
+    const Matrix I_KH_P = product(I_KH, P_prior);
+    P = product_transposed(I_KH_P, I_KH);
+  }
+  const Gain K_R = product(K, MMatrix(R));
   P += product_transposed(K_R, K);
   P = (0.5 * (P + P.transpose())).eval();
-  if (!x.allFinite() || !P.allFinite()) return fault("EKF: the updated state or covariance is not finite");
-  x_ = x;
-  P_ = P;
-  innovation_ = innovation;
-  innovation_variance_ = S.diagonal();
+  bool finite = true;
+  if constexpr (sized) {  // element by element: allFinite() is an out-of-line call per matrix
+#pragma GCC unroll 4
+    for (int i = 0; i < States; ++i) finite &= std::isfinite(x(i));
+#pragma GCC unroll 9
+    for (int i = 0; i < States * States; ++i) finite &= std::isfinite(P.data()[i]);
+  } else {
+    finite = x.allFinite() && P.allFinite();
+  }
+  if (!finite) return fault("EKF: the updated state or covariance is not finite");
+  commit_estimate(x, P, innovation, S.diagonal());
   gain_ = K;
   return StepStatus::ok;
 }

@@ -48,12 +48,17 @@ class ExtendedEstimator final : public nonlinear::ModelEstimator {
  private:
   /// One cycle in Eigen storage of States x Channels (Eigen::Dynamic: any size up to the
   /// capacity). Fixed sizes take Eigen's small-matrix code; both run the same operations.
-  template <int States, int Channels>
+  /// FirstStateOnly: h depends on the first process state alone (H = [h 0 ... 0]), so the
+  /// products with H and I - K H leave out their exact zero terms.
+  template <int States, int Channels, bool FirstStateOnly>
   StepStatus cycle(bool first) noexcept;
 
   // The sizes of the shipped models (plant.suspension with one gap channel) have their own
   // instance of cycle(); any other (n, m) runs the dynamic one.
   bool fixed_ = false;
+  bool measures_first_state_only_ = false;
+  Eigen::Matrix3d q_sized_ = Eigen::Matrix3d::Zero();                ///< Q_k (sized cycle)
+  Eigen::Matrix<double, 1, 1> r_sized_ = Eigen::Matrix<double, 1, 1>::Zero();  ///< R (sized cycle)
   bool compile_time_sizes_ = true;
   JacobianSource jacobian_ = JacobianSource::automatic;
   bool model_has_jacobian_ = false;

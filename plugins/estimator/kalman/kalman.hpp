@@ -127,15 +127,17 @@ class AxisFilter {
   using Matrix = typename AxisModel<N>::Matrix;
   using Vector = typename AxisModel<N>::Vector;
 
-  /// What one cycle produces, before it is committed.
+  /// What one cycle produces, before it is committed. No initial values: compute_update() and
+  /// compute_coast() write every member, and the block keeps one per axis on the stack of
+  /// each step (filling them first cost about as much as the filters' arithmetic).
   struct Cycle {
-    Vector next_prior_state = Vector::Zero();  ///< x^-_{k+1}
-    Matrix next_prior_cov = Matrix::Identity();  ///< P^-_{k+1}
-    Vector posterior_state = Vector::Zero();   ///< x^+_k (= x^-_k when coasting)
-    Vector gain = Vector::Zero();
-    double innovation = 0.0;                   ///< y_k - H x^-_k (0 when coasting)
-    double innovation_variance = 0.0;          ///< S = H P^-_k H^T + r (0 when coasting)
-    bool updated = false;                      ///< false: time update only
+    Vector next_prior_state;    ///< x^-_{k+1}
+    Matrix next_prior_cov;      ///< P^-_{k+1}
+    Vector posterior_state;     ///< x^+_k (= x^-_k when coasting)
+    Vector gain;
+    double innovation;          ///< y_k - H x^-_k (0 when coasting)
+    double innovation_variance; ///< S = H P^-_k H^T + r (0 when coasting)
+    bool updated;               ///< false: time update only
   };
 
   void configure(const AxisModel<N>& model, double p0) {

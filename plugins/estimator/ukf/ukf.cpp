@@ -66,15 +66,12 @@ StepStatus UnscentedEstimator::cycle(S& sized, bool first) noexcept {
     core.set(x_, P_);
     return fault("UKF: the predicted state or covariance is not finite");
   }
-  sized.y = y_;
+  for (Eigen::Index c = 0; c < sized.y.size(); ++c) sized.y(c) = y_(c);  // no memmove call
   if (!core.update([this](const double* x, double* y) { measure(x, y); }, sized.y, sized.R)) {
     core.set(x_, P_);
     return fault("UKF: P_yy not positive definite, or the updated state is not finite");
   }
-  x_ = core.x();
-  P_ = core.P();
-  innovation_ = core.innovation();
-  innovation_variance_ = core.innovation_variance();
+  commit_estimate(core.x(), core.P(), core.innovation(), core.innovation_variance());
   return StepStatus::ok;
 }
 

@@ -109,6 +109,7 @@ class UnscentedCore {
   static constexpr int kN = States == Eigen::Dynamic ? nonlinear::kMaxStates : States;
   static constexpr int kM = Channels == Eigen::Dynamic ? nonlinear::kMaxChannels : Channels;
   static constexpr int kPoints = States == Eigen::Dynamic ? Eigen::Dynamic : 2 * States + 1;
+  static constexpr bool kSized = States != Eigen::Dynamic && Channels != Eigen::Dynamic;
 
  public:
   using Vector = Storage<Scalar, States, 1, kN, 1>;
@@ -144,6 +145,8 @@ class UnscentedCore {
     innovation_variance_.setZero(m_);
     y_hat_.setZero(m_);
     gain_.setZero(n_, m_);
+    points_mean_.setZero(n_);
+    points_mean_valid_ = false;
   }
 
   /// x and P: any Eigen storage of the configured sizes (e.g. the block's capacity-12 ones).
@@ -153,8 +156,11 @@ class UnscentedCore {
     P_ = P;
   }
 
-  /// eq. 20: points around (x, P). False if (L + lambda) P is not positive definite.
-  bool draw() noexcept {
+  /// eq. 20: points around (x, P). False if (L + lambda) P is not positive definite. Forced
+  /// inline: as a member of a class template in a position-independent plugin it was called
+  /// through the PLT.
+  [[gnu::always_inline]] bool draw() noexcept {
+    points_mean_valid_ = false;
     if constexpr (States == 3) {
       if (!cholesky_3x3(spread_ * P_, factor_)) return false;
     } else {
@@ -190,8 +196,13 @@ class UnscentedCore {
 
   /// eq. 22-24: push the points through f and form x^-, P^- (+ Q). The state is committed
   /// only if finite; returns false otherwise.
+  // predict() and update() are forced inline (into the block's cycle) for the same reason
+  // as draw().
   template <class F, class Cov>
-  bool predict(F&& f, const Cov& Q) noexcept {
+  [[gnu::always_inline]] bool predict(F&& f, const Cov& Q) noexcept {
+    if constexpr (kSized) {
+      if (sums_ == Sums::about_centre) return predict_sized(f, Q);
+    }
     std::array<double, kN> x, base, next;  // the first n_ of each are written before they are read
     if (sums_ == Sums::about_centre) {
       for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(centre_(j));
@@ -222,7 +233,10 @@ class UnscentedCore {
 
   /// eq. 25-31 with the current points (propagated, or drawn when there was no prediction).
   template <class H, class Y, class Noise>
-  bool update(H&& h, const Y& y, const Noise& R) noexcept {
+  [[gnu::always_inline]] bool update(H&& h, const Y& y, const Noise& R) noexcept {
+    if constexpr (kSized && Channels == 1) {
+      if (sums_ == Sums::about_centre) return update_sized(h, y(0), R(0, 0));
+    }
     std::array<double, kN> x;  // the first n_ (m_) of each are written before they are read
     std::array<double, kM> base, out;
     MVector y_hat;
@@ -304,6 +318,171 @@ class UnscentedCore {
   [[nodiscard]] const Gain& gain() const noexcept { return gain_; }
 
  private:
+  /// predict() for sizes known at compile time, sums about the centre point: the generic
+  /// code's operations in its order (so its bits) as straight-line scalar code, with the
+  /// moments, + Q, the symmetrisation and the finiteness check in one pass over registers
+  /// instead of four over Eigen temporaries.
+  template <class F, class Cov>
+  [[gnu::always_inline]] bool predict_sized(F& f, const Cov& Q) noexcept {
+    constexpr int N = States;
+    std::array<double, N> x, base, next;
+#pragma GCC unroll 12
+    for (int j = 0; j < N; ++j) x[j] = static_cast<double>(centre_(j));
+    f(x.data(), base.data());
+    for (int i = 1; i < 2 * N + 1; ++i) {
+#pragma GCC unroll 12
+      for (int j = 0; j < N; ++j) x[j] = static_cast<double>(centre_(j)) + static_cast<double>(chi_(j, i));
+      f(x.data(), next.data());
+#pragma GCC unroll 12
+      for (int j = 0; j < N; ++j) chi_(j, i) = static_cast<Scalar>(next[j] - base[j]);
+    }
+    std::array<Scalar, N> mean;
+    std::array<Scalar, N * N> cov;  // column-major, as Matrix
+    std::array<Scalar, N> dbar{};   // x^- - chi_0 = sum_{i>=1} Wi d_i
+    for (int i = 1; i < 2 * N + 1; ++i) {
+#pragma GCC unroll 12
+      for (int j = 0; j < N; ++j) dbar[j] += wi_ * chi_(j, i);
+    }
+#pragma GCC unroll 12
+    for (int j = 0; j < N; ++j) {
+      centre_(j) = static_cast<Scalar>(base[j]);
+      mean[j] = centre_(j) + dbar[j];
+      points_mean_(j) = dbar[j];
+    }
+    points_mean_valid_ = true;  // until the points are drawn again
+    // cov = W0c dbar dbar' + sum Wi (d_i - dbar)(d_i - dbar)', each term (w d_j) d_k from 0.
+#pragma GCC unroll 12
+    for (int k = 0; k < N; ++k) {
+#pragma GCC unroll 12
+      for (int j = 0; j < N; ++j) cov[j + k * N] = Scalar(0) + (wc0_ * dbar[j]) * dbar[k];
+    }
+    for (int i = 1; i < 2 * N + 1; ++i) {
+      std::array<Scalar, N> d, weighted;
+#pragma GCC unroll 12
+      for (int j = 0; j < N; ++j) {
+        d[j] = chi_(j, i) - dbar[j];
+        weighted[j] = wi_ * d[j];
+      }
+#pragma GCC unroll 12
+      for (int k = 0; k < N; ++k) {
+#pragma GCC unroll 12
+        for (int j = 0; j < N; ++j) cov[j + k * N] += weighted[j] * d[k];
+      }
+    }
+    // (cov + Q), then 0.5 ((cov + Q) + (cov + Q)').
+#pragma GCC unroll 12
+    for (int k = 0; k < N; ++k) {
+#pragma GCC unroll 12
+      for (int j = 0; j < N; ++j) cov[j + k * N] += Q(j, k);
+    }
+    // One test for all of it at the end, from independent per-element tests (a chain of
+    // dependent sums would wait on each add).
+    bool finite = true;
+    Matrix P;
+#pragma GCC unroll 12
+    for (int k = 0; k < N; ++k) {
+#pragma GCC unroll 12
+      for (int j = 0; j < N; ++j) {
+        P(j, k) = Scalar(0.5) * (cov[j + k * N] + cov[k + j * N]);
+        finite &= std::isfinite(P(j, k));
+      }
+      finite &= std::isfinite(mean[k]);
+    }
+    if (!finite) return false;
+#pragma GCC unroll 12
+    for (int j = 0; j < N; ++j) x_(j) = mean[j];
+    P_ = P;
+    return redraw_ ? draw() : true;
+  }
+
+  /// update() for sizes known at compile time and one channel, sums about the centre point:
+  /// the generic code's operations in its order, as scalars (P_yy is a number).
+  template <class H>
+  [[gnu::always_inline]] bool update_sized(H& h, Scalar y, Scalar r) noexcept {
+    constexpr int N = States;
+    std::array<double, N> x;
+    double base = 0.0;
+    double out = 0.0;
+#pragma GCC unroll 12
+    for (int j = 0; j < N; ++j) x[j] = static_cast<double>(centre_(j));
+    h(x.data(), &base);
+    upsilon_(0, 0) = Scalar(0);
+    for (int i = 1; i < 2 * N + 1; ++i) {
+#pragma GCC unroll 12
+      for (int j = 0; j < N; ++j) x[j] = static_cast<double>(centre_(j)) + static_cast<double>(chi_(j, i));
+      h(x.data(), &out);
+      upsilon_(0, i) = static_cast<Scalar>(out - base);
+    }
+    // x^- relative to the centre point: the same sum as the prediction's, which left it in
+    // points_mean_ when these are its points.
+    std::array<Scalar, N> x_dev{};
+    if (points_mean_valid_) {
+#pragma GCC unroll 12
+      for (int j = 0; j < N; ++j) x_dev[j] = points_mean_(j);
+    } else {
+      for (int i = 1; i < 2 * N + 1; ++i) {
+#pragma GCC unroll 12
+        for (int j = 0; j < N; ++j) x_dev[j] += wi_ * chi_(j, i);
+      }
+    }
+    Scalar y_dev = Scalar(0);  // y^ relative to Y_0
+    for (int i = 1; i < 2 * N + 1; ++i) y_dev += wi_ * upsilon_(0, i);
+    const Scalar y_centre = static_cast<Scalar>(base);
+    const Scalar y_hat = y_centre + y_dev;
+    Scalar Pyy = r;
+    std::array<Scalar, N> Pxy{};
+    for (int i = 0; i < 2 * N + 1; ++i) {
+      const Scalar w = i == 0 ? wc0_ : wi_;
+      const Scalar dy = upsilon_(0, i) - y_dev;
+      Pyy += (w * dy) * dy;
+#pragma GCC unroll 12
+      for (int j = 0; j < N; ++j) Pxy[j] += (w * (chi_(j, i) - x_dev[j])) * dy;
+    }
+    // eq. 29 with P_yy a number: its Cholesky factor is sqrt(P_yy) and the two triangular
+    // solves scale by its reciprocal, as Eigen's LLT solve does (a division by P_yy would
+    // round differently).
+    if (!(Pyy > Scalar(0)) && !std::isnan(Pyy)) return false;
+    const Scalar inverse_root = Scalar(1) / std::sqrt(Pyy);
+    std::array<Scalar, N> K;
+#pragma GCC unroll 12
+    for (int j = 0; j < N; ++j) K[j] = (Pxy[j] * inverse_root) * inverse_root;
+    const Scalar innovation = (y - y_centre) - y_dev;  // no cancellation of |y|
+    std::array<Scalar, N> x_new;
+    bool finite = true;
+#pragma GCC unroll 12
+    for (int j = 0; j < N; ++j) {
+      x_new[j] = x_(j) + K[j] * innovation;  // eq. 30
+      finite &= std::isfinite(x_new[j]);
+    }
+    std::array<Scalar, N * N> P;  // eq. 31: P^- - K P_yy K'
+#pragma GCC unroll 12
+    for (int k = 0; k < N; ++k) {
+#pragma GCC unroll 12
+      for (int j = 0; j < N; ++j) P[j + k * N] = P_(j, k) - (K[j] * Pyy) * K[k];
+    }
+    Matrix P_sym;
+#pragma GCC unroll 12
+    for (int k = 0; k < N; ++k) {
+#pragma GCC unroll 12
+      for (int j = 0; j < N; ++j) {
+        P_sym(j, k) = Scalar(0.5) * (P[j + k * N] + P[k + j * N]);
+        finite &= std::isfinite(P_sym(j, k));
+      }
+    }
+    if (!finite) return false;
+#pragma GCC unroll 12
+    for (int j = 0; j < N; ++j) {
+      x_(j) = x_new[j];
+      gain_(j, 0) = K[j];
+    }
+    P_ = P_sym;
+    y_centre_(0) = y_centre;
+    innovation_(0) = innovation;
+    innovation_variance_(0) = Pyy;
+    y_hat_(0) = y_hat;
+    return true;
+  }
+
   /// The lower Cholesky factor of a 3 x 3 A into L's lower triangle, with the operations of
   /// Eigen's LLT in its order (so the same bits) without its run-time-sized blocks. False
   /// where Eigen's fails: a pivot <= 0 (a NaN pivot goes on, as there, and shows as NaN in L).
@@ -404,6 +583,8 @@ class UnscentedCore {
   Gain gain_;
   Eigen::LLT<Matrix> llt_;
   Matrix factor_;  ///< the lower Cholesky factor of (L + lambda) P
+  Vector points_mean_;              ///< sum_{i>=1} Wi d_i of the current points (sized prediction)
+  bool points_mean_valid_ = false;  ///< the prediction has formed points_mean_ from chi_ as it is
 };
 
 }  // namespace ukf

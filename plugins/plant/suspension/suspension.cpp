@@ -220,21 +220,38 @@ void Suspension::reset() noexcept {
   stop_contacts_ = 0;
 }
 
-double Suspension::force_n(double gap_m, double current_a) const noexcept {
+namespace {
+
+// The physics as functions of this file, so that propagate() and the RK4 steps inline them:
+// the members below are exported (a plugin built position-independent calls its own exported
+// functions through the PLT, which the compiler may not inline). Forced inline: out of line,
+// the derivative came back through memory, written one double at a time and read two at a
+// time, and that store-to-load forwarding failed on each of a UKF's 7 calls per cycle.
+
+[[gnu::always_inline]] inline double attraction(const SuspensionConfig& c, double gap_m, double current_a) noexcept {
   // Below the coil face the force law is meaningless (and d^-4 explodes): hold it there.
-  const double d = std::max(gap_m, config_.gap_limits_m[0]);
+  const double d = std::max(gap_m, c.gap_limits_m[0]);
   const double d2 = d * d;
-  return config_.force_a_n_m4 / (d2 * d2) + config_.force_b_n_m2_per_a * current_a / d2;  // eq. 13
+  return c.force_a_n_m4 / (d2 * d2) + c.force_b_n_m2_per_a * current_a / d2;  // eq. 13
 }
 
-void Suspension::derivative(const double* x, double u, double* dx) const noexcept {
-  dx[kGap] = x[kVelocity];
-  dx[kVelocity] = config_.gravity_m_s2 - force_n(x[kGap], x[kCurrent]) / config_.mass_kg;
-  dx[kCurrent] = -config_.coil_decay_1_per_s * x[kCurrent] + config_.coil_gain_a_per_v_s * u;
+[[gnu::always_inline]] inline void slope(const SuspensionConfig& c, const double* x, double u, double* dx) noexcept {
+  dx[Suspension::kGap] = x[Suspension::kVelocity];
+  dx[Suspension::kVelocity] =
+      c.gravity_m_s2 - attraction(c, x[Suspension::kGap], x[Suspension::kCurrent]) / c.mass_kg;
+  dx[Suspension::kCurrent] = -c.coil_decay_1_per_s * x[Suspension::kCurrent] + c.coil_gain_a_per_v_s * u;
 }
+
+}  // namespace
+
+double Suspension::force_n(double gap_m, double current_a) const noexcept {
+  return attraction(config_, gap_m, current_a);
+}
+
+void Suspension::derivative(const double* x, double u, double* dx) const noexcept { slope(config_, x, u, dx); }
 
 void Suspension::rk4_step(double h, double u, State& x) const noexcept {
-  plants::rk4_step(x, h, [&](const State& at, State& slope) { derivative(at.data(), u, slope.data()); }, x);
+  plants::rk4_step(x, h, [&](const State& at, State& dx) { slope(config_, at.data(), u, dx.data()); }, x);
 }
 
 void Suspension::enforce_stops(double* x) noexcept {
@@ -268,17 +285,23 @@ void Suspension::state(double* x) const noexcept {
 }
 
 void Suspension::propagate(double dt_s, const double* x, const double* u, double* x_next) const noexcept {
-  State next;
-  std::copy_n(x, kStateSize, next.begin());
   if (config_.process_discretization == SuspensionDiscretization::rk4) {
+    State next;
+    std::copy_n(x, kStateSize, next.begin());
     rk4_step(dt_s, u[kCoilVoltage], next);
-  } else {
-    // eq. 33: x(k+1) = x(k) + t_s f(x(k), u(k)).
-    State dx{};
-    derivative(x, u[kCoilVoltage], dx.data());
-    for (std::size_t i = 0; i < kStateSize; ++i) next[i] += dt_s * dx[i];
+    std::copy(next.begin(), next.end(), x_next);
+    return;
   }
-  std::copy(next.begin(), next.end(), x_next);
+  // eq. 33: x(k+1) = x(k) + t_s f(x(k), u(k)), without the copy through a local array that
+  // the RK4 branch needs (x_next may be x: everything is read before anything is written).
+  std::array<double, kStateSize> dx;
+  slope(config_, x, u[kCoilVoltage], dx.data());
+  const double gap = x[kGap] + dt_s * dx[kGap];
+  const double velocity = x[kVelocity] + dt_s * dx[kVelocity];
+  const double current = x[kCurrent] + dt_s * dx[kCurrent];
+  x_next[kGap] = gap;
+  x_next[kVelocity] = velocity;
+  x_next[kCurrent] = current;
 }
 
 bool Suspension::process_jacobian(double dt_s, const double* x, const double* /*u*/, double* F) const noexcept {

@@ -1,5 +1,6 @@
 #include "hall_gap.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -7,6 +8,17 @@
 #include "lode/sdk/plugin.hpp"
 
 namespace lode::plugins {
+
+namespace {
+
+/// d_hall = d within what eq. 14 can report (C_H clamped to its range), in m. Here rather
+/// than in evaluate() alone so that jacobian() inlines it: an exported member would be called
+/// through the PLT on every EKF step.
+double reported_gap_m(double distance_mm, double nearest_mm, double farthest_mm) noexcept {
+  return 1e-3 * std::clamp(distance_mm, nearest_mm, farthest_mm);
+}
+
+}  // namespace
 
 HallGap::HallGap() { apply(hall::Conversion::paper(), Output::hall_voltage, "hall"); }
 
@@ -36,8 +48,7 @@ void HallGap::apply(const hall::Conversion& conversion, Output output, const std
 void HallGap::evaluate(const double* state, double* y) const noexcept {
   const double distance_mm = 1e3 * state[kGap];
   if (output_ == Output::gap) {
-    // d_hall = d within what eq. 14 can report (C_H clamped to its range).
-    y[0] = 1e-3 * std::clamp(distance_mm, nearest_mm_, farthest_mm_);
+    y[0] = reported_gap_m(distance_mm, nearest_mm_, farthest_mm_);
     return;
   }
   const double c_h = conversion_.compensated_for_distance(distance_mm, nearest_mm_, farthest_mm_);
@@ -45,13 +56,14 @@ void HallGap::evaluate(const double* state, double* y) const noexcept {
 }
 
 void HallGap::jacobian(const double* state, double* y, double* H) const noexcept {
-  evaluate(state, y);
   const double distance_mm = 1e3 * state[kGap];
   const bool inside = distance_mm > nearest_mm_ && distance_mm < farthest_mm_;
   if (output_ == Output::gap) {
+    y[0] = reported_gap_m(distance_mm, nearest_mm_, farthest_mm_);
     H[kGap] = inside ? 1.0 : 0.0;
     return;
   }
+  evaluate(state, y);
   // dC_H/dgap = 1000 / M_H'(C_H) (inverse function rule; M_H' < 0 on the range).
   const double c_h = conversion_.compensated_for_distance(distance_mm, nearest_mm_, farthest_mm_);
   H[kGap] = inside ? 1e3 / conversion_.distance_mm.slope(c_h) : 0.0;

@@ -264,11 +264,7 @@ bool ModelEstimator::innovation(double* residual, double* variance) const noexce
   return true;
 }
 
-void ModelEstimator::measure(const double* x, double* y) const noexcept {
-  if (measurement_reads_leading_states_) {  // h's state is x's first elements: no copy
-    measurement_->evaluate(x, y);
-    return;
-  }
+void ModelEstimator::measure_gathered(const double* x, double* y) const noexcept {
   std::array<double, kMaxStates + kMaxInputs> model_state;  // the first measurement_state_.size() are set
   gather_measurement_state(x, u_.data(), model_state.data());
   measurement_->evaluate(model_state.data(), y);

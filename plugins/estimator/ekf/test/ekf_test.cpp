@@ -18,6 +18,7 @@
 #include "estimator/testing/harness_setup.hpp"
 #include "estimator/testing/state_handover.hpp"
 #include "estimator/testing/suspension_estimator.hpp"
+#include "hall_polynomial.hpp"
 #include "lode/sdk/testing/allocation_counter.hpp"
 #include "lode/sdk/testing/require.hpp"
 #include "lode/sdk/testing/harness.hpp"
@@ -266,6 +267,37 @@ TEST(EkfBlock, SizedAlgebraGivesTheGenericResultsBitForBit) {
   const auto& P = dynamic_cast<lode::plugins::ExtendedEstimator&>(sized.block()).covariance();
   const auto& P_generic = dynamic_cast<lode::plugins::ExtendedEstimator&>(generic.block()).covariance();
   EXPECT_EQ(P, P_generic);
+}
+
+TEST(EkfBlock, SizedAlgebraForAnHThatReadsAnInputGivesTheGenericResultsBitForBit) {
+  // The Hall voltage's h reads the gap and the coil voltage, a process input: the sized cycle
+  // then takes its general products with H, not the ones that leave out H's zero columns
+  // when h reads the first state alone (the test above).
+  LODE_REQUIRE_PLUGINS("plant.suspension", "sensor.hall_gap");
+  const std::string models = std::string(kModels) + "hall_volts: {plugin: sensor.hall_gap}\n";
+  const Benchmark bm = make_benchmark(3000);
+  const std::string params = suspension_estimator(
+      "measurement: hall_volts\nq: [5.6e-8, 1.7e-8, 7.71e-3]\nprocess_noise: per_second\nr: 4e-6\n", bm.truth[0](2));
+  lode::testing::BlockHarness sized("estimator.ekf", params, 2000.0, models);
+  lode::testing::BlockHarness generic("estimator.ekf", params + "compile_time_sizes: false\n", 2000.0, models);
+  for (auto* h : {&sized, &generic}) {
+    h->feed("measurement", {{"hall", "V"}});
+    h->feed("input", {{"gap", "m"}, {"coil_voltage", "V"}});
+    ASSERT_TRUE(started(*h));
+  }
+  ASSERT_TRUE(dynamic_cast<lode::plugins::ExtendedEstimator&>(sized.block()).fixed_size());
+  const lode::plugins::hall::Conversion c = lode::plugins::hall::Conversion::paper();
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> noise(0.0, 2e-3);
+  for (std::size_t k = 0; k < bm.y.size(); ++k) {
+    const double hall_v = c.compensated_for_distance(bm.truth[k](0) * 1e3) + c.coil_v.value(bm.u[k]) + noise(rng);
+    for (auto* h : {&sized, &generic}) {
+      h->input("measurement")[0] = hall_v;
+      h->input("input")[1] = bm.u[k];
+      ASSERT_EQ(h->step(), lode::StepStatus::ok) << h->block().fault_reason();
+    }
+    ASSERT_TRUE(lode::estimator_testing::same_outputs(sized, generic, {"state", "std", "innovation"}, k));
+  }
 }
 
 }  // namespace

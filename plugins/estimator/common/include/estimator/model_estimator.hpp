@@ -109,13 +109,48 @@ class ModelEstimator : public Block, public EstimatorState {
   virtual StepStatus filter_cycle(bool first) noexcept = 0;
   virtual void describe_filter(Json& out) const = 0;
 
+  /// h depends on the first process state and nothing else (e.g. the suspension's gap): its
+  /// Jacobian is zero beyond the first column.
+  [[nodiscard]] bool measurement_reads_first_state_only() const noexcept {
+    return measurement_reads_leading_states_ && measurement_state_.size() == 1;
+  }
+
+  /// x_, P_, innovation_ and innovation_variance_ = the cycle's results. From storage sized at
+  /// compile time, element by element into the capacity-sized members (already n and m long
+  /// since configure()): Eigen's assignment between the two checks and resizes each time.
+  template <class X, class Cov, class Innovation, class Variance>
+  void commit_estimate(const X& x, const Cov& P, const Innovation& innovation, const Variance& variance) noexcept {
+    constexpr int kN = X::SizeAtCompileTime;
+    constexpr int kM = Innovation::SizeAtCompileTime;
+    if constexpr (kN != Eigen::Dynamic && kM != Eigen::Dynamic) {
+      for (int i = 0; i < kN; ++i) x_.data()[i] = x(i);
+      for (int i = 0; i < kN * kN; ++i) P_.data()[i] = P.data()[i];  // both column-major, n x n
+      for (int c = 0; c < kM; ++c) {
+        innovation_.data()[c] = innovation(c);
+        innovation_variance_.data()[c] = variance(c);
+      }
+    } else {
+      x_ = x;
+      P_ = P;
+      innovation_ = innovation;
+      innovation_variance_ = variance;
+    }
+  }
+
   /// x_next = f(x, u_) over one period.
   void propagate(const double* x, double* x_next) const noexcept { process_->propagate(dt_, x, u_.data(), x_next); }
   void propagate(const double* x, const double* u, double* x_next) const noexcept {
     process_->propagate(dt_, x, u, x_next);
   }
-  /// y = h(x) with the measurement model's inputs taken from x and u_.
-  void measure(const double* x, double* y) const noexcept;
+  /// y = h(x) with the measurement model's inputs taken from x and u_. Inline: the UKF calls it
+  /// for each sigma point, and from this library's object code it would go through the PLT.
+  void measure(const double* x, double* y) const noexcept {
+    if (measurement_reads_leading_states_) {  // h's state is x's first elements: no copy
+      measurement_->evaluate(x, y);
+      return;
+    }
+    measure_gathered(x, y);
+  }
   /// y = h(x) and H = dh/dx (m x n; the columns of elements taken from u are dropped).
   void measure_jacobian(const double* x, double* y, ObservationMatrix& H) const noexcept {
     measure_jacobian(x, u_.data(), y, H);
@@ -130,9 +165,13 @@ class ModelEstimator : public Block, public EstimatorState {
     // Only the m x width entries the model writes are cleared, not the whole capacity.
     std::array<double, kMaxStates + kMaxInputs> model_state;
     std::array<double, kMaxChannels*(kMaxStates + kMaxInputs)> row_major;
-    std::fill_n(row_major.begin(), m_ * width, 0.0);
-    gather_measurement_state(x, u, model_state.data());
-    measurement_->jacobian(model_state.data(), y, row_major.data());
+    for (std::size_t i = 0; i < m_ * width; ++i) row_major[i] = 0.0;  // a few: no memset call
+    const double* state = x;  // h's state is x's first elements: no copy
+    if (!measurement_reads_leading_states_) {
+      gather_measurement_state(x, u, model_state.data());
+      state = model_state.data();
+    }
+    measurement_->jacobian(state, y, row_major.data());
     H.setZero(static_cast<Eigen::Index>(m_), static_cast<Eigen::Index>(n_));
     for (std::size_t c = 0; c < m_; ++c)
       for (std::size_t j = 0; j < width; ++j)
@@ -147,6 +186,14 @@ class ModelEstimator : public Block, public EstimatorState {
   /// The same into any n x n Eigen storage.
   template <class Jacobian>
   bool analytic_process_jacobian_into(const double* x, const double* u, Jacobian& F) const noexcept {
+    constexpr int kSized = Jacobian::RowsAtCompileTime;
+    if constexpr (kSized != Eigen::Dynamic) {  // n x n known here: no loops over n_, no memset call
+      Eigen::Matrix<double, kSized, kSized, Eigen::RowMajor> row_major;
+      row_major.setZero();
+      if (!process_->process_jacobian(dt_, x, u, row_major.data())) return false;
+      F = row_major;
+      return true;
+    }
     std::array<double, kMaxStates * kMaxStates> row_major;
     std::fill_n(row_major.begin(), n_ * n_, 0.0);
     if (!process_->process_jacobian(dt_, x, u, row_major.data())) return false;
@@ -206,6 +253,8 @@ class ModelEstimator : public Block, public EstimatorState {
 
  private:
   void gather_measurement_state(const double* x, const double* u, double* model_state) const noexcept;
+  /// measure() when h reads process inputs or the states in another order.
+  void measure_gathered(const double* x, double* y) const noexcept;
   void describe_linearisation(Json& out) const;
 
   std::string process_name_;
