@@ -318,6 +318,24 @@ class UnscentedCore {
   [[nodiscard]] const Gain& gain() const noexcept { return gain_; }
 
  private:
+  /// out = 0.5 (a + a') for the column-major States x States `a`; false when a coefficient
+  /// is not finite. One test from independent per-element tests (a chain of dependent sums
+  /// would wait on each add), shared by predict and update.
+  [[gnu::always_inline]] static bool symmetrised(const std::array<Scalar, States * States>& a,
+                                                 Matrix& out) noexcept {
+    constexpr int N = States;
+    bool finite = true;
+#pragma GCC unroll 12
+    for (int k = 0; k < N; ++k) {
+#pragma GCC unroll 12
+      for (int j = 0; j < N; ++j) {
+        out(j, k) = Scalar(0.5) * (a[j + k * N] + a[k + j * N]);
+        finite &= std::isfinite(out(j, k));
+      }
+    }
+    return finite;
+  }
+
   /// predict() for sizes known at compile time, sums about the centre point: the generic
   /// code's operations in its order (so its bits) as straight-line scalar code, with the
   /// moments, + Q, the symmetrisation and the finiteness check in one pass over registers
@@ -375,19 +393,10 @@ class UnscentedCore {
 #pragma GCC unroll 12
       for (int j = 0; j < N; ++j) cov[j + k * N] += Q(j, k);
     }
-    // One test for all of it at the end, from independent per-element tests (a chain of
-    // dependent sums would wait on each add).
-    bool finite = true;
     Matrix P;
+    bool finite = symmetrised(cov, P);
 #pragma GCC unroll 12
-    for (int k = 0; k < N; ++k) {
-#pragma GCC unroll 12
-      for (int j = 0; j < N; ++j) {
-        P(j, k) = Scalar(0.5) * (cov[j + k * N] + cov[k + j * N]);
-        finite &= std::isfinite(P(j, k));
-      }
-      finite &= std::isfinite(mean[k]);
-    }
+    for (int k = 0; k < N; ++k) finite &= std::isfinite(mean[k]);
     if (!finite) return false;
 #pragma GCC unroll 12
     for (int j = 0; j < N; ++j) x_(j) = mean[j];
@@ -461,14 +470,7 @@ class UnscentedCore {
       for (int j = 0; j < N; ++j) P[j + k * N] = P_(j, k) - (K[j] * Pyy) * K[k];
     }
     Matrix P_sym;
-#pragma GCC unroll 12
-    for (int k = 0; k < N; ++k) {
-#pragma GCC unroll 12
-      for (int j = 0; j < N; ++j) {
-        P_sym(j, k) = Scalar(0.5) * (P[j + k * N] + P[k + j * N]);
-        finite &= std::isfinite(P_sym(j, k));
-      }
-    }
+    finite &= symmetrised(P, P_sym);
     if (!finite) return false;
 #pragma GCC unroll 12
     for (int j = 0; j < N; ++j) {
