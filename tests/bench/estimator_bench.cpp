@@ -22,6 +22,7 @@
 #include <memory>
 #include <numbers>
 #include <random>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -200,6 +201,97 @@ void BM_KalmanCycle(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_KalmanCycle);
+
+// ---------------------------------------------------------------------------------------
+// GLSDC, encoder EKF, hybrid H2/H-inf and NPO, each on its shipped config's model and settings.
+// After: compile_time_sizes: true (the default); before (…Generic): compile_time_sizes: false.
+
+/// estimator.glsdc as config/kawato_planar.yaml runs it: the hall_fit model (harmonics 1 and 5,
+/// sensors A and B), 3dof, one Gauss-Newton step per tick, 0.2 back-off, 1 mV noise, 800 Hz.
+/// The samples come from io.sim with that config's board (1 mV noise, 16-bit ADC, seed 1) and
+/// platen, driven open loop along x = 100 um (cos 2 pi t - 1), y = 100 um (cos 2.6 pi t - 1),
+/// theta_z = 1 mrad (cos 2 pi t - 1): 4000 samples replayed in a loop after 2000 cycles of
+/// warm-up.
+const char* const kKawatoModels =
+    "platen: {plugin: plant.planar_stage, mass_kg: 6.20, inertia_kg_m2: 0.054}\n"
+    "hall_fit: {plugin: sensor.halbach_hall, pitch_m: 0.0508, gap_m: 0.002, harmonics: [1, 5],"
+    " sensitivity_v_per_t: 8.43, sensors: [{name: A, x_m: 0.00635, y_m: 0.09525, channels: [a1, b1]},"
+    " {name: B, x_m: -0.00635, y_m: -0.09525, channels: [c1, d2]}]}\n";
+
+std::vector<std::array<double, 4>> kawato_hall_samples() {
+  lode::BlockHost board("io.sim",
+                        "plant: platen\nsensors: [hall_fit]\nnoise_std_v: 1.0e-3\nadc_bits: 16\nadc_range_v: 10\nseed: 1\n",
+                        800.0, kKawatoModels);
+  board.feed("command", {{"fx", "N"}, {"fy", "N"}, {"tz", "N*m"}});
+  if (!board.configure() || !board.activate()) {
+    std::fprintf(stderr, "estimator_bench: cannot start io.sim:\n%s", board.diagnostics().c_str());
+    std::exit(1);
+  }
+  std::vector<std::array<double, 4>> out;
+  const double w = 2.0 * std::numbers::pi;
+  for (int k = 0; k < kSamples; ++k) {
+    if (board.step() != lode::StepStatus::ok) std::exit(1);
+    const std::span<const double> signals = board.output("signals");
+    out.push_back({signals[0], signals[1], signals[2], signals[3]});
+    // The accelerations of the cosine paths (x'' = -A w^2 cos wt), times mass or inertia.
+    const double t = k / 800.0;
+    const std::span<double> command = board.input("command");
+    command[0] = -6.20 * 1e-4 * w * w * std::cos(w * t);
+    command[1] = -6.20 * 1e-4 * 1.69 * w * w * std::cos(1.3 * w * t);
+    command[2] = -0.054 * 1e-3 * w * w * std::cos(w * t);
+    if (board.write() != lode::StepStatus::ok) std::exit(1);
+  }
+  return out;
+}
+
+struct GlsdcRig {
+  explicit GlsdcRig(const std::string& own_params)
+      : host("estimator.glsdc",
+             "model: hall_fit\nmode: 3dof\niterations: 1\nbackoff: 0.2\nnoise_std_v: 1.0e-3\n" + own_params, 800.0,
+             kKawatoModels),
+        signals(kawato_hall_samples()) {
+    host.feed("measurement", {{"a1", "V"}, {"b1", "V"}, {"c1", "V"}, {"d2", "V"}});
+    if (!host.configure() || !host.activate()) {
+      std::fprintf(stderr, "estimator_bench: cannot start estimator.glsdc:\n%s", host.diagnostics().c_str());
+      std::exit(1);
+    }
+    measurement = host.input("measurement").data();
+    pose_out = host.output("pose").data();
+    for (int k = 0; k < kWarmUp; ++k) cycle();
+  }
+  void cycle() {
+    const std::array<double, 4>& y = signals[static_cast<std::size_t>(next)];
+    for (std::size_t i = 0; i < 4; ++i) measurement[i] = y[i];
+    if (host.step() != lode::StepStatus::ok) {
+      std::fprintf(stderr, "estimator_bench: estimator.glsdc faulted: %s\n", host.block().fault_reason());
+      std::exit(1);
+    }
+    next = next + 1 == kSamples ? 0 : next + 1;
+  }
+  lode::BlockHost host;
+  std::vector<std::array<double, 4>> signals;
+  double* measurement = nullptr;
+  const double* pose_out = nullptr;
+  int next = 0;
+};
+
+void BM_GlsdcCycle(benchmark::State& state) {
+  static GlsdcRig rig("");
+  for (auto _ : state) {
+    rig.cycle();
+    benchmark::DoNotOptimize(rig.pose_out[0]);
+  }
+}
+BENCHMARK(BM_GlsdcCycle);
+
+void BM_GlsdcCycleGeneric(benchmark::State& state) {
+  static GlsdcRig rig("compile_time_sizes: false\n");
+  for (auto _ : state) {
+    rig.cycle();
+    benchmark::DoNotOptimize(rig.pose_out[0]);
+  }
+}
+BENCHMARK(BM_GlsdcCycleGeneric);
 
 }  // namespace
 
