@@ -293,6 +293,77 @@ void BM_GlsdcCycleGeneric(benchmark::State& state) {
 }
 BENCHMARK(BM_GlsdcCycleGeneric);
 
+/// estimator.ekf_encoder as config/encoder_ekf.yaml runs it: the 4 um sin/cos head (1 V),
+/// Singer model alpha = 200 pi, sigma_m^2 = 1e-5, R = diag(8 mV^2, 8 mV^2), 20 kHz. The samples:
+/// io.sim with that config's stage (1 um, 5 Hz sine; 8 mV noise, 12-bit ADC, seed 1): 4000
+/// samples (0.2 s, one full period) replayed in a loop after 2000 cycles of warm-up.
+const char* const kEncoderModels =
+    "axis: {plugin: plant.encoder_stage, amplitude_m: 1.0e-6, frequency_hz: 5.0}\n"
+    "head: {plugin: sensor.sincos_encoder, pitch_m: 4.0e-6, amplitude_v: 1.0}\n";
+
+struct EncoderEkfRig {
+  explicit EncoderEkfRig(const std::string& own_params)
+      : host("estimator.ekf_encoder",
+             "model: head\nacceleration_pole_rad_s: 628.3185307179586\nacceleration_variance_m2_s4: 1.0e-5\n"
+             "noise_std_v: 8.0e-3\ninitial_position_std_m: 4.0e-8\ninitial_velocity_std_m_s: 1.0e-4\n"
+             "initial_acceleration_std_m_s2: 1.0e-2\n" + own_params,
+             20000.0, kEncoderModels) {
+    lode::BlockHost board("io.sim",
+                          "plant: axis\nsensors: [head]\nnoise_std_v: 8.0e-3\nadc_bits: 12\nadc_range_v: 1.25\nseed: 1\n",
+                          20000.0, kEncoderModels);
+    if (!board.configure() || !board.activate()) {
+      std::fprintf(stderr, "estimator_bench: cannot start io.sim:\n%s", board.diagnostics().c_str());
+      std::exit(1);
+    }
+    for (int k = 0; k < kSamples; ++k) {
+      if (board.step() != lode::StepStatus::ok || board.write() != lode::StepStatus::ok) std::exit(1);
+      const std::span<const double> y = board.output("signals");
+      signals.push_back({y[0], y[1]});
+    }
+    host.feed("signals", {{"sin", "V"}, {"cos", "V"}});
+    if (!host.configure() || !host.activate()) {
+      std::fprintf(stderr, "estimator_bench: cannot start estimator.ekf_encoder:\n%s", host.diagnostics().c_str());
+      std::exit(1);
+    }
+    input = host.input("signals").data();
+    estimate_out = host.output("estimate").data();
+    for (int k = 0; k < kWarmUp; ++k) cycle();
+  }
+  void cycle() {
+    const std::array<double, 2>& y = signals[static_cast<std::size_t>(next)];
+    input[0] = y[0];
+    input[1] = y[1];
+    if (host.step() != lode::StepStatus::ok) {
+      std::fprintf(stderr, "estimator_bench: estimator.ekf_encoder faulted: %s\n", host.block().fault_reason());
+      std::exit(1);
+    }
+    next = next + 1 == kSamples ? 0 : next + 1;
+  }
+  lode::BlockHost host;
+  std::vector<std::array<double, 2>> signals;
+  double* input = nullptr;
+  const double* estimate_out = nullptr;
+  int next = 0;
+};
+
+void BM_EncoderEkfCycle(benchmark::State& state) {
+  static EncoderEkfRig rig("");
+  for (auto _ : state) {
+    rig.cycle();
+    benchmark::DoNotOptimize(rig.estimate_out[0]);
+  }
+}
+BENCHMARK(BM_EncoderEkfCycle);
+
+void BM_EncoderEkfCycleGeneric(benchmark::State& state) {
+  static EncoderEkfRig rig("compile_time_sizes: false\n");
+  for (auto _ : state) {
+    rig.cycle();
+    benchmark::DoNotOptimize(rig.estimate_out[0]);
+  }
+}
+BENCHMARK(BM_EncoderEkfCycleGeneric);
+
 }  // namespace
 
 BENCHMARK_MAIN();
