@@ -364,6 +364,122 @@ void BM_EncoderEkfCycleGeneric(benchmark::State& state) {
 }
 BENCHMARK(BM_EncoderEkfCycleGeneric);
 
+/// Six pose-like axes measured with noise of the given std: x, y, z along 1 Hz paths of
+/// 20 um, 10 um and 5 um, the angles 10 urad (fixed seed), 4000 samples at `rate_hz`.
+std::vector<std::array<double, 6>> six_axis_poses(double rate_hz, double noise_std, unsigned seed) {
+  std::mt19937 noise_source(seed);
+  std::normal_distribution<double> noise(0.0, noise_std);
+  std::vector<std::array<double, 6>> poses;
+  for (int k = 0; k < kSamples; ++k) {
+    const double phase = 2.0 * std::numbers::pi * k / rate_hz;
+    const std::array<double, 6> truth = {20e-6 * std::cos(phase), 10e-6 * std::sin(phase), 5e-6 * std::sin(2 * phase),
+                                         10e-6 * std::sin(phase),  10e-6 * std::cos(phase), 10e-6 * std::sin(3 * phase)};
+    std::array<double, 6> measured{};
+    for (std::size_t i = 0; i < 6; ++i) measured[i] = truth[i] + noise(noise_source);
+    poses.push_back(measured);
+  }
+  return poses;
+}
+
+const lode::Elements kSixAxisPose = {{"x", "m"},     {"y", "m"},       {"theta_z", "rad"},
+                                      {"z", "m"},     {"theta_x", "rad"}, {"theta_y", "rad"}};
+
+/// estimator.hybrid_h2hinf as config/maglev6_hybrid.yaml runs it: six constant-acceleration
+/// axes at 800 Hz with steady blended gains (d = 1, its q, r, theta and S), fed six noisy poses
+/// (1 um noise). Its per-axis algebra is fixed-size 3 x 3 already (there is no generic path):
+/// one benchmark, the baseline for work on this filter.
+struct HybridRig {
+  HybridRig()
+      : host("estimator.hybrid_h2hinf",
+             "d: 1.0\nq: [1.0e3, 1.0e3, 1.0e5, 1.0e9, 1.0e9, 1.0e9]\nr: 1.0e-6\n"
+             "hinf_theta: [8.0e5, 8.0e5, 8.0e5, 5.0e5, 5.0e5, 5.0e5]\nhinf_error_weight: [1, 0, 0]\noutput: filtered\n",
+             800.0),
+        poses(six_axis_poses(800.0, 1e-6, 5)) {
+    host.feed("measurement", kSixAxisPose);
+    if (!host.configure() || !host.activate()) {
+      std::fprintf(stderr, "estimator_bench: cannot start estimator.hybrid_h2hinf:\n%s", host.diagnostics().c_str());
+      std::exit(1);
+    }
+    measurement = host.input("measurement").data();
+    pose_out = host.output("pose").data();
+    for (int k = 0; k < kWarmUp; ++k) cycle();
+  }
+  void cycle() {
+    const std::array<double, 6>& pose = poses[static_cast<std::size_t>(next)];
+    for (std::size_t i = 0; i < 6; ++i) measurement[i] = pose[i];
+    if (host.step() != lode::StepStatus::ok) {
+      std::fprintf(stderr, "estimator_bench: estimator.hybrid_h2hinf faulted: %s\n", host.block().fault_reason());
+      std::exit(1);
+    }
+    next = next + 1 == kSamples ? 0 : next + 1;
+  }
+  lode::BlockHost host;
+  std::vector<std::array<double, 6>> poses;
+  double* measurement = nullptr;
+  const double* pose_out = nullptr;
+  int next = 0;
+};
+
+void BM_HybridCycle(benchmark::State& state) {
+  static HybridRig rig;
+  for (auto _ : state) {
+    rig.cycle();
+    benchmark::DoNotOptimize(rig.pose_out[0]);
+  }
+}
+BENCHMARK(BM_HybridCycle);
+
+/// estimator.npo as config/npo_velocity.yaml runs it: the plant.rigid_body6 stage of Table 1 as
+/// the process model (nonlinear dynamics, one RK4 step per period), d0 = 100, a0 = 1e4 1/s,
+/// exact integrator, 2500 Hz; six noisy poses (10 nm / 10 nrad noise) and a small held wrench.
+/// Its 12-state algebra is fixed-size already (there is no generic path): one benchmark.
+struct NpoRig {
+  NpoRig()
+      : host("estimator.npo", "model: stage\nd0: 100.0\na0_per_s: 1.0e4\nintegrator: exact\ndynamics: nonlinear\n",
+             2500.0,
+             "stage: {plugin: plant.rigid_body6, mass_kg: 0.931, inertia_kg_m2: [1.799e-3, 1.834e-3, 3.336e-3],"
+             " gravity_m_s2: 0.0}\n"),
+        poses(six_axis_poses(2500.0, 1e-8, 6)) {
+    host.feed("measurement", {{"x", "m"}, {"y", "m"}, {"z", "m"}, {"phi", "rad"}, {"theta", "rad"}, {"psi", "rad"}});
+    host.feed("force", {{"fx", "N"}, {"fy", "N"}, {"fz", "N"}, {"tx", "N*m"}, {"ty", "N*m"}, {"tz", "N*m"}});
+    if (!host.configure() || !host.activate()) {
+      std::fprintf(stderr, "estimator_bench: cannot start estimator.npo:\n%s", host.diagnostics().c_str());
+      std::exit(1);
+    }
+    measurement = host.input("measurement").data();
+    force = host.input("force").data();
+    velocity_out = host.output("velocity").data();
+    for (int k = 0; k < kWarmUp; ++k) cycle();
+  }
+  void cycle() {
+    const std::array<double, 6>& pose = poses[static_cast<std::size_t>(next)];
+    for (std::size_t i = 0; i < 6; ++i) {
+      measurement[i] = pose[i];
+      force[i] = 1e-3 * pose[(i + 1) % 6] / 20e-6;  // a few mN / uN*m, varying with the path
+    }
+    if (host.step() != lode::StepStatus::ok) {
+      std::fprintf(stderr, "estimator_bench: estimator.npo faulted: %s\n", host.block().fault_reason());
+      std::exit(1);
+    }
+    next = next + 1 == kSamples ? 0 : next + 1;
+  }
+  lode::BlockHost host;
+  std::vector<std::array<double, 6>> poses;
+  double* measurement = nullptr;
+  double* force = nullptr;
+  const double* velocity_out = nullptr;
+  int next = 0;
+};
+
+void BM_NpoCycle(benchmark::State& state) {
+  static NpoRig rig;
+  for (auto _ : state) {
+    rig.cycle();
+    benchmark::DoNotOptimize(rig.velocity_out[0]);
+  }
+}
+BENCHMARK(BM_NpoCycle);
+
 }  // namespace
 
 BENCHMARK_MAIN();
