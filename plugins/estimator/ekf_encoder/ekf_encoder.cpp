@@ -151,13 +151,16 @@ SteadyState steady_state(const StateMatrix& transition, const StateMatrix& proce
 }
 
 void Filter::configure(const StateMatrix& transition, const StateMatrix& process_noise,
-                       const std::vector<double>& noise_variance, const StateVector& initial_std) {
+                       const std::vector<double>& noise_variance, const StateVector& initial_std,
+                       bool compile_time_sizes) {
   channels_ = noise_variance.size();
   f_ = transition;
   q_ = process_noise;
   const auto m = static_cast<Eigen::Index>(channels_);
   r_ = ChannelMatrix::Zero(m, m);
   for (Eigen::Index i = 0; i < m; ++i) r_(i, i) = noise_variance[static_cast<std::size_t>(i)];
+  sized_ = compile_time_sizes && channels_ == static_cast<std::size_t>(kSizedChannels);
+  if (sized_) sized_r_ = r_;
   p0_ = initial_std.cwiseProduct(initial_std).asDiagonal();
   innovation_ = ChannelVector::Zero(m);
   reset(0.0);
@@ -177,21 +180,32 @@ void Filter::predict() noexcept {
 }
 
 bool Filter::update(const double* measured, const double* predicted, const double* slope) noexcept {
+  return sized_ ? update_with<SizedChannelVector>(sized_r_, measured, predicted, slope)
+                : update_with<ChannelVector>(r_, measured, predicted, slope);
+}
+
+template <typename Vector, typename Matrix>
+bool Filter::update_with(const Matrix& r, const double* measured, const double* predicted,
+                         const double* slope) noexcept {
   const auto m = static_cast<Eigen::Index>(channels_);
-  ChannelVector h(m);
-  ChannelVector innovation(m);
+  Vector h;
+  Vector innovation;
+  if constexpr (Vector::SizeAtCompileTime == Eigen::Dynamic) {
+    h.resize(m);
+    innovation.resize(m);
+  }
   for (Eigen::Index i = 0; i < m; ++i) {
     h(i) = slope[i];
     innovation(i) = measured[i] - predicted[i];  // z - h(x(k+1|k)), eq. 14
   }
   // S = H P H' + R with H = [h 0 0] (eq. 11, 15).
-  ChannelMatrix s = r_;
+  Matrix s = r;
   s.noalias() += (p_(kPosition, kPosition) * h) * h.transpose();
-  const Eigen::LLT<ChannelMatrix> llt(s);
+  const Eigen::LLT<Matrix> llt(s);
   if (llt.info() != Eigen::Success) return false;
-  const ChannelVector w = llt.solve(h);  // S^-1 h, so K = P e1 w'
+  const Vector w = llt.solve(h);  // S^-1 h, so K = P e1 w'
   const double wh = w.dot(h);
-  const double wrw = w.dot(r_ * w);
+  const double wrw = w.dot(r * w);
   const double wv = w.dot(innovation);
 
   const StateVector p_col = p_.col(kPosition);
@@ -236,6 +250,7 @@ Status EkfEncoder::configure(ConfigureContext& ctx) {
   initial_std_ << params.number("initial_position_std_m", 4e-8),
       params.number("initial_velocity_std_m_s", 1e-4), params.number("initial_acceleration_std_m_s2", 1e-2);
   initial_position_m_ = params.number("initial_position_m", 0.0);
+  compile_time_sizes_ = params.flag("compile_time_sizes", true);
 
   params.check(std::isfinite(alpha_rad_s_) && alpha_rad_s_ > 0.0, "acceleration_pole_rad_s",
                "alpha must be > 0 rad/s (Table 1: 200 pi), got " + number_text(alpha_rad_s_));
@@ -302,7 +317,7 @@ Status EkfEncoder::configure(ConfigureContext& ctx) {
   process_noise_ = ekf_encoder::singer_process_noise(alpha_rad_s_, period_s_, acceleration_variance_);
   std::vector<double> variance;
   for (double s : noise_std_v_) variance.push_back(s * s);
-  filter_.configure(transition_, process_noise_, variance, initial_std_);
+  filter_.configure(transition_, process_noise_, variance, initial_std_, compile_time_sizes_);
   return Status::ok();
 }
 
@@ -351,6 +366,7 @@ void EkfEncoder::describe(Json& out) const {
   out["model"] = model_name_;
   if (model_) out["measurement_model"] = estimator::description_of(*model_);
   out["period_s"] = period_s_;
+  out["algebra"] = filter_.fixed_size() ? "sized at compile time (2 channels)" : "generic (sizes chosen at configure)";
   out["acceleration_pole_rad_s"] = alpha_rad_s_;
   out["acceleration_variance_m2_s4"] = acceleration_variance_;
   out["alpha_T"] = alpha_rad_s_ * period_s_;
@@ -422,6 +438,8 @@ constexpr ParamDoc kParams[] = {
     {"initial_acceleration_std_m_s2", "number", "1e-2", "sqrt P(0)_33 [m/s^2]"},
     {"initial_position_m", "number", "0",
      "x(0) when the `initial` input is not connected [m]; also where describe() evaluates the steady state"},
+    {"compile_time_sizes", "bool", "true",
+     "true: a 2-channel model (sin, cos) runs the update sized at compile time (same results); false: the generic code"},
 };
 
 constexpr PortSpec kPorts[] = {

@@ -46,6 +46,11 @@
 //   innovation:   [model channels, V]   # z - h(x(k|k-1))
 // @endsystem
 //
+// Sized path: two channels (sin, cos: config/encoder_ekf.yaml) run the update on 2 x 2 storage
+// sized at compile time (compile_time_sizes: true, the default); any other count, or
+// compile_time_sizes: false, the capacity-4 dynamic code. Same operations in the same order:
+// the same bits (a test compares both cycle by cycle).
+//
 // Threads: configure()/activate()/describe() on the loader thread; step() on the RT thread
 // (fixed-size Eigen only; no allocation).
 #pragma once
@@ -74,6 +79,10 @@ using StateMatrix = Eigen::Matrix<double, kStateSize, kStateSize>;
 using ChannelVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, static_cast<int>(kMaxChannels), 1>;
 using ChannelMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, static_cast<int>(kMaxChannels),
                                     static_cast<int>(kMaxChannels)>;
+/// The channel count of the sized path: a sin/cos head.
+inline constexpr int kSizedChannels = 2;
+using SizedChannelVector = Eigen::Matrix<double, kSizedChannels, 1>;
+using SizedChannelMatrix = Eigen::Matrix<double, kSizedChannels, kSizedChannels>;
 
 /// F = e^{A T} of the Singer model (eq. 9), evaluated without cancellation for small alpha T.
 StateMatrix singer_transition(double alpha_rad_s, double period_s);
@@ -110,9 +119,11 @@ SteadyState steady_state(const StateMatrix& transition, const StateMatrix& proce
 /// The filter itself, independent of ports (tests drive it directly).
 class Filter {
  public:
-  /// channels = m <= kMaxChannels; noise_variance has m entries.
+  /// channels = m <= kMaxChannels; noise_variance has m entries. compile_time_sizes: m =
+  /// kSizedChannels runs the update on storage sized at compile time (same results).
   void configure(const StateMatrix& transition, const StateMatrix& process_noise,
-                 const std::vector<double>& noise_variance, const StateVector& initial_std);
+                 const std::vector<double>& noise_variance, const StateVector& initial_std,
+                 bool compile_time_sizes = true);
 
   /// x(0|-1) = [position, 0, 0], P = P0.
   void reset(double position_m) noexcept;
@@ -127,12 +138,20 @@ class Filter {
   [[nodiscard]] const StateMatrix& covariance() const noexcept { return p_; }
   [[nodiscard]] std::size_t channels() const noexcept { return channels_; }
   [[nodiscard]] const ChannelVector& innovation() const noexcept { return innovation_; }
+  /// True when update() runs the compile-time-sized code.
+  [[nodiscard]] bool fixed_size() const noexcept { return sized_; }
 
  private:
+  /// update() on channel storage of type Vector / Matrix (dynamic, or kSizedChannels).
+  template <typename Vector, typename Matrix>
+  bool update_with(const Matrix& r, const double* measured, const double* predicted, const double* slope) noexcept;
+
   std::size_t channels_ = 0;
   StateMatrix f_ = StateMatrix::Identity();
   StateMatrix q_ = StateMatrix::Zero();
   ChannelMatrix r_;
+  bool sized_ = false;
+  SizedChannelMatrix sized_r_ = SizedChannelMatrix::Zero();  ///< r_ when sized_
   StateMatrix p0_ = StateMatrix::Identity();
   StateVector x_ = StateVector::Zero();
   StateMatrix p_ = StateMatrix::Identity();
@@ -161,6 +180,7 @@ class EkfEncoder final : public Block {
   ekf_encoder::StateVector initial_std_ = ekf_encoder::StateVector::Zero();
   double initial_position_m_ = 0.0;
   double period_s_ = 0.0;
+  bool compile_time_sizes_ = true;
 
   // Model and derived matrices
   ModelPtr<MeasurementModel> model_;

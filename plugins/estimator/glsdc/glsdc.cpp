@@ -32,6 +32,7 @@ Status Glsdc::configure(ConfigureContext& ctx) {
   invalid_measurement_ = params.choice("invalid_measurement", {"fault", "propagate"}, "fault") == "propagate"
                              ? InvalidMeasurement::propagate
                              : InvalidMeasurement::fault;
+  compile_time_sizes_ = params.flag("compile_time_sizes", true);
   iterations_ = params.integer("iterations", 1);
   backoff_ = params.number("backoff", 0.2);
   noise_std_v_ = params.numbers("noise_std_v", std::vector<double>{1e-3});
@@ -72,6 +73,8 @@ Status Glsdc::configure(ConfigureContext& ctx) {
   predicted_.setZero(channels_);
   trial_.setZero(channels_);
   jacobian_.setZero(channels_, kStates);
+  sized_ = compile_time_sizes_ && mode_ == Mode::three_dof && channels_ == kSizedChannels;
+  if (sized_) estimator::set_channel_weights(noise_std_v_, channels_, sized_work_.weight);
 
   ctx.declare_input(measurement_, "measurement", channels);
   if (mode_ == Mode::two_dof) ctx.declare_input(theta_, "theta", {{"theta_z", "rad"}}, false);
@@ -141,6 +144,35 @@ bool Glsdc::solve(Covariance& r, State& dz) const noexcept {
   return r.allFinite() && dz.allFinite();
 }
 
+bool Glsdc::iterate() noexcept {
+  for (std::int64_t it = 0; it < iterations_; ++it) {
+    linearise(z_);
+    const double cost_before = cost_of(predicted_);
+    Covariance r;
+    State dz;
+    if (!solve(r, dz)) return true;  // singular: hold the estimate (skip the update)
+    const State z_full = z_ + dz;
+    model_->evaluate(z_full.data(), trial_.data());
+    const double cost_after = cost_of(trial_);
+    if (cost_after > cost_before) {
+      // Thesis Appendix B/C: z <- z + dz - (1 - backoff) dz, no re-check.
+      z_ += backoff_ * dz;
+      ++backoffs_;
+    } else {
+      z_ = z_full;
+    }
+  }
+  return false;
+}
+
+bool Glsdc::finish(Covariance& r) noexcept {
+  linearise(z_);
+  cost_value_ = cost_of(predicted_);
+  if (!std::isfinite(cost_value_)) return false;
+  State dz;
+  return solve(r, dz);
+}
+
 StepStatus Glsdc::step(const Tick& /*tick*/) noexcept {
   // Inputs are checked before anything changes: with invalid_measurement: propagate a bad
   // cycle publishes NaN and leaves the estimate (the next warm start) as it was.
@@ -161,31 +193,15 @@ StepStatus Glsdc::step(const Tick& /*tick*/) noexcept {
       return StepStatus::ok;
     }
   }
-  for (int i = 0; i < channels_; ++i) measured_(i) = measurement_[static_cast<std::size_t>(i)];
+  if (sized_) {
+    for (int i = 0; i < kSizedChannels; ++i) sized_work_.measured(i) = measurement_[static_cast<std::size_t>(i)];
+  } else {
+    for (int i = 0; i < channels_; ++i) measured_(i) = measurement_[static_cast<std::size_t>(i)];
+  }
   if (mode_ == Mode::two_dof) z_(kThetaZ) = theta;
 
   const State z_before = z_;
-  bool singular = false;
-  for (std::int64_t it = 0; it < iterations_; ++it) {
-    linearise(z_);
-    const double cost_before = cost_of(predicted_);
-    Covariance r;
-    State dz;
-    if (!solve(r, dz)) {
-      singular = true;  // hold the estimate (skip the update)
-      break;
-    }
-    const State z_full = z_ + dz;
-    model_->evaluate(z_full.data(), trial_.data());
-    const double cost_after = cost_of(trial_);
-    if (cost_after > cost_before) {
-      // Thesis Appendix B/C: z <- z + dz - (1 - backoff) dz, no re-check.
-      z_ += backoff_ * dz;
-      ++backoffs_;
-    } else {
-      z_ = z_full;
-    }
-  }
+  bool singular = sized_ ? iterate_sized() : iterate();
   if (!z_.allFinite()) {
     z_ = z_before;
     linearisation_valid_ = false;
@@ -194,12 +210,10 @@ StepStatus Glsdc::step(const Tick& /*tick*/) noexcept {
 
   // Covariance and cost of the published estimate (eq. 4.28 at the final iterate). The
   // linearisation is kept for the next tick's first step.
-  linearise(z_);
-  cost_value_ = cost_of(predicted_);
-  if (!std::isfinite(cost_value_)) return fault("non-finite cost");
   Covariance r;
-  State dz;
-  if (solve(r, dz)) {
+  const bool solved = sized_ ? finish_sized(r) : finish(r);
+  if (!std::isfinite(cost_value_)) return fault("non-finite cost");
+  if (solved) {
     r_ = r;
     has_covariance_ = true;
   } else {
@@ -266,6 +280,7 @@ void Glsdc::describe(Json& out) const {
                                    ? "propagate (NaN pose/covariance/cost for the cycle, estimate kept)"
                                    : "fault";
   out["iterations"] = iterations_;
+  out["algebra"] = sized_ ? "sized at compile time (3dof, 4 channels)" : "generic (sizes chosen at configure)";
   out["backoff"] = backoff_;
   std::vector<double> sigma(static_cast<std::size_t>(channels_));
   std::vector<double> w(static_cast<std::size_t>(channels_));
@@ -288,6 +303,8 @@ constexpr ParamDoc kParams[] = {
     {"mode", "text", "3dof",
      "3dof: estimate x, y, theta_z; 2dof: theta fixed (theta input or initial[2]), eq. 4.29-4.30"},
     {"iterations", "integer", "1", "Gauss-Newton steps per tick (1..100), warm-started"},
+    {"compile_time_sizes", "bool", "true",
+     "true: 3dof over 4 channels runs algebra sized at compile time (same results); false: the generic code"},
     {"backoff", "number", "0.2",
      "fraction of the step kept when the cost rises (thesis scaling factor), in (0, 1]"},
     {"noise_std_v", "number | list<number>", "1e-3",

@@ -23,6 +23,14 @@
 //   cost: [cost: 1]                                           # J at the published estimate
 // @endblock
 //
+// Sized path: 3dof over a 4-channel model (two two-axis Hall sensors, every shipped
+// kawato_planar pipeline) runs storage sized at compile time and reuses work the generic path
+// repeats (compile_time_sizes: true, the default): the trial point is evaluated with the
+// Jacobian, so an accepted step is already linearised, and R = (H'WH)^-1 is kept for its
+// linearisation, so the next tick's first step (same z, same H) does not factor it again.
+// Same operations in the same order: the same bits as the generic path, provided the model's
+// jacobian() returns the same y as its evaluate() (both are y = h(state)).
+//
 // Threads: configure()/activate()/describe() on the loader thread; step() on the RT thread
 // (no allocation: fixed-capacity Eigen storage sized in configure()).
 #pragma once
@@ -62,6 +70,10 @@ class Glsdc final : public Block, public EstimatorState {
       Eigen::Matrix<double, Eigen::Dynamic, kStates, Eigen::RowMajor, kMaxChannels, kStates>;
   using State = Eigen::Vector3d;
   using Covariance = Eigen::Matrix3d;
+  /// The channel count of the sized path: two two-axis Hall sensors.
+  static constexpr int kSizedChannels = 4;
+  using SizedVector = Eigen::Matrix<double, kSizedChannels, 1>;
+  using SizedJacobian = Eigen::Matrix<double, kSizedChannels, kStates, Eigen::RowMajor>;
 
   Status configure(ConfigureContext& ctx) override;
   Status activate() override;
@@ -87,6 +99,8 @@ class Glsdc final : public Block, public EstimatorState {
   [[nodiscard]] std::uint64_t singular_skips() const noexcept { return singular_skips_; }
   /// Gauss-Newton steps that were cut to backoff * dz because the cost rose.
   [[nodiscard]] std::uint64_t backoffs() const noexcept { return backoffs_; }
+  /// True when step() runs the compile-time-sized path.
+  [[nodiscard]] bool fixed_size() const noexcept { return sized_; }
   //@}
 
   static constexpr double kMinRcond = 1e-12;
@@ -100,6 +114,19 @@ class Glsdc final : public Block, public EstimatorState {
   /// R = (H' W H)^-1 over the free states and the Gauss-Newton step R H' W (y - f).
   /// Returns false when H' W H is singular (Eigen LDLT rcond estimate < kMinRcond).
   bool solve(Covariance& r, State& dz) const noexcept;
+  /// The `iterations` Gauss-Newton steps of one tick; true when H'WH was singular.
+  bool iterate() noexcept;
+  /// f, H at the published estimate, its cost and R (false: singular, keep the last R).
+  bool finish(Covariance& r) noexcept;
+
+  /// @name Sized path (3dof, kSizedChannels channels): the same algebra on fixed-size storage.
+  //@{
+  bool iterate_sized() noexcept;
+  bool finish_sized(Covariance& r) noexcept;
+  void linearise_sized(const State& z) noexcept;
+  /// solve() over the sized storage, reusing R while the linearisation has not moved.
+  bool solve_sized(Covariance& r, State& dz) noexcept;
+  //@}
   void publish() noexcept;
   /// invalid_measurement: propagate: NaN on pose, covariance and cost for this cycle.
   void publish_invalid() noexcept;
@@ -113,6 +140,8 @@ class Glsdc final : public Block, public EstimatorState {
   int channels_ = 0;
   std::int64_t iterations_ = 1;
   double backoff_ = 0.2;
+  bool compile_time_sizes_ = true;
+  bool sized_ = false;  ///< compile_time_sizes_ and the model fits the sized path
   std::vector<double> noise_std_v_;
   ChannelVector weight_;  ///< W diagonal, 1/sigma^2 [1/V^2]
   State initial_ = State::Zero();
@@ -135,6 +164,20 @@ class Glsdc final : public Block, public EstimatorState {
   ChannelVector trial_;        ///< h(z + dz)
   State linearised_at_ = State::Zero();
   bool linearisation_valid_ = false;
+
+  /// Sized-path storage (kSizedChannels channels, 3 free states).
+  struct Sized {
+    SizedVector weight = SizedVector::Zero();
+    SizedVector measured = SizedVector::Zero();
+    SizedVector predicted = SizedVector::Zero();      ///< h(z) at linearised_at_
+    SizedJacobian jacobian = SizedJacobian::Zero();   ///< dh/dz at linearised_at_
+    SizedVector trial = SizedVector::Zero();          ///< h(z + dz)
+    SizedJacobian trial_jacobian = SizedJacobian::Zero();  ///< dh/dz at z + dz
+    Covariance factor_r = Covariance::Zero();  ///< (H'WH)^-1 at linearised_at_, when factor_ok
+    bool factor_ok = false;     ///< H'WH at linearised_at_ passed the LDLT checks
+    bool factor_valid = false;  ///< factor_r / factor_ok belong to the current linearisation
+  };
+  Sized sized_work_;
 
   std::uint64_t singular_skips_ = 0;
   bool was_singular_ = false;

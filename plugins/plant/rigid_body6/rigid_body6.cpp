@@ -15,25 +15,45 @@ namespace lode::plugins {
 
 namespace rigid_body6 {
 
-Matrix3 rotation_body_to_fixed(double phi, double theta, double psi) noexcept {
-  const double cf = std::cos(phi), sf = std::sin(phi);
-  const double ct = std::cos(theta), st = std::sin(theta);
-  const double cp = std::cos(psi), sp = std::sin(psi);
+namespace {
+
+/// The sines and cosines of the three attitude angles, each computed once: a derivative needs
+/// cos/sin phi and cos theta in both R_BF and E (the RK4 step evaluates four derivatives).
+struct AttitudeTrig {
+  double cf, sf, ct, st, cp, sp;
+  AttitudeTrig(double phi, double theta, double psi) noexcept
+      : cf(std::cos(phi)), sf(std::sin(phi)), ct(std::cos(theta)), st(std::sin(theta)), cp(std::cos(psi)),
+        sp(std::sin(psi)) {}
+};
+
+Matrix3 rotation_body_to_fixed(const AttitudeTrig& a) noexcept {
+  const double cf = a.cf, sf = a.sf, ct = a.ct, st = a.st, cp = a.cp, sp = a.sp;
   // R_BF = Rz(psi) Ry(theta) Rx(phi) (Appendix A, signs from standard z-y-x kinematics).
   return Matrix3{{{ct * cp, sf * st * cp - cf * sp, cf * st * cp + sf * sp},
                   {ct * sp, sf * st * sp + cf * cp, cf * st * sp - sf * cp},
                   {-st, sf * ct, cf * ct}}};
 }
 
-Matrix3 euler_rate_matrix(double phi, double theta) noexcept {
-  const double cf = std::cos(phi), sf = std::sin(phi);
-  const double tt = std::tan(theta), sec = 1.0 / std::cos(theta);
+Matrix3 euler_rate_matrix(const AttitudeTrig& a, double theta) noexcept {
+  const double cf = a.cf, sf = a.sf;
+  const double tt = std::tan(theta), sec = 1.0 / a.ct;
   return Matrix3{{{1.0, sf * tt, cf * tt}, {0.0, cf, -sf}, {0.0, sf * sec, cf * sec}}};
 }
 
+}  // namespace
+
+Matrix3 rotation_body_to_fixed(double phi, double theta, double psi) noexcept {
+  return rotation_body_to_fixed(AttitudeTrig(phi, theta, psi));
+}
+
+Matrix3 euler_rate_matrix(double phi, double theta) noexcept {
+  return euler_rate_matrix(AttitudeTrig(phi, theta, 0.0), theta);
+}
+
 void derivative(const Physics& physics, const State& x, const Input& u, State& dxdt) noexcept {
-  const Matrix3 r_bf = rotation_body_to_fixed(x[kPhi], x[kTheta], x[kPsi]);
-  const Matrix3 e = euler_rate_matrix(x[kPhi], x[kTheta]);
+  const AttitudeTrig trig(x[kPhi], x[kTheta], x[kPsi]);
+  const Matrix3 r_bf = rotation_body_to_fixed(trig);
+  const Matrix3 e = euler_rate_matrix(trig, x[kTheta]);
   const double vu = x[kU], vv = x[kV], vw = x[kW];
   const double p = x[kP], q = x[kQ], r = x[kR];
 
