@@ -19,6 +19,8 @@ function(lode_add_plugin)
   add_library(lode_${id}_obj OBJECT ${P_SOURCES})
   target_link_libraries(lode_${id}_obj PUBLIC lodestone::core Eigen3::Eigen ${P_LIBS})
   target_include_directories(lode_${id}_obj PUBLIC ${CMAKE_CURRENT_SOURCE_DIR})
+  # A module's step() may inline and call its own helpers directly (no PLT): nothing interposes them.
+  target_compile_options(lode_${id}_obj PRIVATE -fno-semantic-interposition)
   lode_set_warnings(lode_${id}_obj)
 
   add_library(lode_${id} MODULE $<TARGET_OBJECTS:lode_${id}_obj>)

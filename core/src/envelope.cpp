@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 
 namespace lode::pipeline_detail {
 
@@ -54,7 +55,9 @@ bool Envelope::check(const Tick& tick) noexcept {
       if (!std::isfinite(v) && limit.max_invalid_ns >= 0) continue;
       if (!(v >= limit.min[i])) return breach(l, i, Breach::below, v, limit.min[i], tick);
       if (!(v <= limit.max[i])) return breach(l, i, Breach::above, v, limit.max[i], tick);
-      if (state.have_previous && std::isfinite(state.previous[i]) && std::isfinite(v)) {
+      // Most limits bound no rate (max_rate +inf): no rate exceeds that, so skip the division.
+      if (limit.max_rate[i] < std::numeric_limits<double>::infinity() && state.have_previous &&
+          std::isfinite(state.previous[i]) && std::isfinite(v)) {
         const double rate = std::abs(v - state.previous[i]) / tick.dt_s;
         if (rate > limit.max_rate[i]) return breach(l, i, Breach::rate, rate, limit.max_rate[i], tick);
       }

@@ -261,9 +261,7 @@ Status SimBoard::configure_sensors(ConfigureContext& ctx, Params& params) {
 
 Status SimBoard::activate() {
   plant_->reset();
-  rng_.seed(seed_);
-  has_spare_gaussian_ = false;
-  spare_gaussian_ = 0.0;
+  noise_.seed(seed_);
   safe_.store(false, std::memory_order_relaxed);
   for (auto& u : held_command_) u = 0.0;
   inject_live_channel_.store(-1, std::memory_order_relaxed);
@@ -326,18 +324,12 @@ StepStatus SimBoard::sample(std::int64_t time_ns, bool in_cycle) noexcept {
     const double previous_count = counts_[c];
     const double previous_signal = signals_[c];
     double volts = clean_signals_[c] + channel_offset_v_[c] + mains_v;
-    if (with_noise && noise_std_v_ > 0.0) volts += noise_std_v_ * gaussian();
+    if (with_noise && noise_std_v_ > 0.0) volts += noise_std_v_ * noise_();
     if (!std::isfinite(volts)) return fault("non-finite simulated signal");
     if (lsb_v_ > 0.0) {
-      // Mid-tread quantizer, then the converter's code range (clip and count).
-      double code = std::floor(volts / lsb_v_ + 0.5);
-      if (code > count_max_) {
-        code = count_max_;
-        ++saturated;
-      } else if (code < count_min_) {
-        code = count_min_;
-        ++saturated;
-      }
+      bool clipped = false;
+      const double code = sim::adc_code(volts, lsb_v_, count_min_, count_max_, clipped);
+      if (clipped) ++saturated;
       counts_[c] = code;
       signals_[c] = code * lsb_v_;
     } else {
@@ -364,22 +356,6 @@ StepStatus SimBoard::sample(std::int64_t time_ns, bool in_cycle) noexcept {
   }
   was_saturated_ = saturated > 0;
   return StepStatus::ok;
-}
-
-double SimBoard::gaussian() noexcept {
-  if (has_spare_gaussian_) {
-    has_spare_gaussian_ = false;
-    return spare_gaussian_;
-  }
-  // 53-bit uniforms; u1 in (0, 1] so the logarithm is finite.
-  constexpr double kScale = 1.0 / 9007199254740992.0;  // 2^-53
-  const double u1 = static_cast<double>((rng_() >> 11) + 1) * kScale;
-  const double u2 = static_cast<double>(rng_() >> 11) * kScale;
-  const double radius = std::sqrt(-2.0 * std::log(u1));
-  const double angle = 2.0 * std::numbers::pi * u2;
-  spare_gaussian_ = radius * std::sin(angle);
-  has_spare_gaussian_ = true;
-  return radius * std::cos(angle);
 }
 
 StepStatus SimBoard::write(const Tick& tick) noexcept {

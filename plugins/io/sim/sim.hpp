@@ -40,13 +40,13 @@
 
 #include <atomic>
 #include <cstdint>
-#include <random>
 #include <string>
 #include <vector>
 
 #include "lode/sdk/block.hpp"
 #include "lode/sdk/board.hpp"
 #include "lode/sdk/tunables.hpp"
+#include "sim_converter.hpp"
 
 namespace lode::plugins {
 
@@ -106,9 +106,6 @@ class SimBoard final : public Block, public Tunables, public Board {
   /// `{channel, start_s, duration_s}` of a fault-injection map: the channel's index (-1 when
   /// the map is invalid, which is reported) and the window [start_ns, end_ns).
   void parse_injection_window(Params& window, bool sensors_ok, FaultWindow& out);
-  /// Standard normal deviate from the board's own generator (Box-Muller, deterministic on
-  /// every standard library, unlike std::normal_distribution).
-  double gaussian() noexcept;
   void advance_plant(double dt_s, const double* u) noexcept;
 
   // Models
@@ -159,10 +156,7 @@ class SimBoard final : public Block, public Tunables, public Board {
   std::vector<double> clean_signals_;
   std::vector<double> held_command_;
 
-  // Noise generator
-  std::mt19937_64 rng_;
-  bool has_spare_gaussian_ = false;
-  double spare_gaussian_ = 0.0;
+  sim::GaussianNoise noise_;
 
   // Health, readable from describe() while running
   std::atomic<bool> safe_{false};
