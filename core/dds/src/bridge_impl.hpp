@@ -287,6 +287,7 @@ class Bridge final : public TelemetryBridge {
 inline void ParticipantWatcher::on_participant_discovery(fdds::DomainParticipant* /*participant*/,
                                                          rtps::ParticipantDiscoveryInfo&& info) {
   bridge_.participant_changed(info);
+  detail::hold_reply_to_new_participant(info);
 }
 
 inline void CommandWakeup::on_data_available(fdds::DataReader* /*reader*/) { bridge_.command_available(); }
