@@ -109,7 +109,7 @@ Status Bridge::open(const ParticipantOptions& options) {
   if (Status s = publish_signal_info(); !s) return s;
   std::uint32_t step = 0;  // cycles between records: the gcd of the decimations
   for (const auto& c : tap_.channels()) step = std::gcd(step, std::max<std::uint32_t>(c.decimation, 1));
-  record_step_ns_ = pipeline_.period_ns() * std::max<std::uint32_t>(step, 1);
+  capture_aim_.set_step_ns(pipeline_.period_ns() * std::max<std::uint32_t>(step, 1));
 
   publisher_thread_ = std::thread([this] {
     pthread_setname_np(pthread_self(), "lode-telemetry");
@@ -201,11 +201,12 @@ void Bridge::publisher_loop() {
   PublishDoorbell& doorbell = tap_.doorbell();
   std::uint32_t seen = doorbell.sequence();
   while (!stopping_.load(std::memory_order_acquire)) {
-    std::optional<clock::time_point> aim;
+    std::optional<CaptureAim::Aim> aim;
     {
       std::lock_guard lock(publish_mutex_);  // flush() drains too, and learns from what it drains
       drain_rings();
-      aim = next_capture();
+      // Real clock only: a simulated one has no schedule to aim at.
+      if (run_stats_.wake_latency.count() > 0) aim = capture_aim_.next();
       publish_events();
       if (clock::now() >= next_timing) {
         publish_timing();
@@ -214,11 +215,7 @@ void Bridge::publisher_loop() {
       }
     }
     const auto wake_by = std::min(clock::now() + publish_period, next_timing);
-    // Be awake when the next samples come, rather than asleep on the doorbell: then the RT
-    // thread's ring() is an atomic add and a load, no system call. Sleep until just after
-    // the expected capture (real clock only: a simulated one has no schedule to aim at);
-    // if the capture is late, the doorbell wakes us.
-    if (aim && *aim < wake_by) std::this_thread::sleep_until(*aim);
+    if (aim && aim->wake < wake_by) await_capture(*aim, wake_by, seen);
     if (doorbell.sequence() == seen) {
       const auto left = wake_by - clock::now();
       doorbell.wait(seen, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
@@ -230,28 +227,23 @@ void Bridge::publisher_loop() {
   publish_events();
 }
 
-std::optional<std::chrono::steady_clock::time_point> Bridge::next_capture() const {
-  if (!capture_offset_known_ || run_stats_.wake_latency.count() == 0) return std::nullopt;
-  const std::int64_t aim_ns = last_stamp_ns_ + record_step_ns_ + capture_offset_ns_;
-  // steady_clock is CLOCK_MONOTONIC, the clock of captured_ns.
-  return std::chrono::steady_clock::time_point(std::chrono::nanoseconds(aim_ns));
-}
-
-void Bridge::learn_capture_time(const SampleHeader& header) {
-  // captured_ns - stamp_ns is the run's start on CLOCK_MONOTONIC plus how late the RT thread
-  // copied this cycle's values. Track its 90th percentile (a streaming estimate: up 1 us when
-  // above, down 1/9 us when below), so we wake after nine captures in ten.
-  constexpr std::int64_t kStepNs = 1000;
-  const std::int64_t offset = header.captured_ns - header.stamp_ns;
-  if (!capture_offset_known_) {
-    capture_offset_ns_ = offset;
-    capture_offset_known_ = true;
-  } else if (offset > capture_offset_ns_) {
-    capture_offset_ns_ += kStepNs;
-  } else if (offset < capture_offset_ns_) {
-    capture_offset_ns_ -= kStepNs / 9;
+void Bridge::await_capture(const CaptureAim::Aim& aim, std::chrono::steady_clock::time_point wake_by,
+                           std::uint32_t seen) {
+  using clock = std::chrono::steady_clock;
+  // Awake and polling when the RT thread rings, its ring() is an atomic add and a load, no
+  // system call, and the samples leave at once (capture_aim.hpp says why and how long).
+  std::this_thread::sleep_until(aim.wake);
+  const auto woke = clock::now();
+  {
+    std::lock_guard lock(publish_mutex_);
+    capture_aim_.learn_oversleep(woke - aim.wake);
   }
-  last_stamp_ns_ = std::max(last_stamp_ns_, header.stamp_ns);
+  const auto spin_end = std::min(woke + capture_aim_.spin_budget(), wake_by);
+  PublishDoorbell& doorbell = tap_.doorbell();
+  while (doorbell.sequence() == seen && clock::now() < spin_end) cpu_relax();
+  // A late capture: sleep past the usual latest one before waiting on the doorbell, so the
+  // ring rarely has to make a system call.
+  if (doorbell.sequence() == seen && aim.late < wake_by) std::this_thread::sleep_until(aim.late);
 }
 
 void Bridge::drain_rings() {
@@ -261,7 +253,7 @@ void Bridge::drain_rings() {
     SampleRing& ring = *tap_channels[i].ring;
     SampleHeader header;
     while (const double* values = ring.front(header)) {
-      learn_capture_time(header);
+      capture_aim_.learn_capture(header.stamp_ns, header.captured_ns);
       bool ok = false;
       if (!channel.state) {
         auto& s = channel.sample;

@@ -33,6 +33,7 @@
 #include <fastdds/rtps/participant/ParticipantDiscoveryInfo.h>
 #include <fastrtps/utils/IPLocator.h>
 
+#include "capture_aim.hpp"
 #include "command_request.hpp"
 #include "common.hpp"
 #include "lode/sdk/rt_log.hpp"
@@ -226,9 +227,9 @@ class Bridge final : public TelemetryBridge {
   void publisher_loop();
   void command_loop();
   void drain_rings();
-  /// When the next record should be in its ring (nullopt: no estimate). Under publish_mutex_.
-  [[nodiscard]] std::optional<std::chrono::steady_clock::time_point> next_capture() const;
-  void learn_capture_time(const SampleHeader& header);
+  /// Sleep until just before the next records are due, then poll the doorbell briefly.
+  void await_capture(const CaptureAim::Aim& aim, std::chrono::steady_clock::time_point wake_by,
+                     std::uint32_t seen);
   void publish_timing();
   void publish_events();
   void handle_command(const lode::msg::Command& command, const fdds::SampleInfo& info);
@@ -260,10 +261,7 @@ class Bridge final : public TelemetryBridge {
 
   // When the RT thread copies a cycle's values, learnt from the records drained (under
   // publish_mutex_, as the rings).
-  std::int64_t record_step_ns_ = 0;   ///< between two cycles that publish something
-  std::int64_t capture_offset_ns_ = 0;
-  bool capture_offset_known_ = false;
-  std::int64_t last_stamp_ns_ = 0;
+  CaptureAim capture_aim_;
   std::atomic<bool> stopping_{false};  ///< the publisher thread's stop flag
 
   std::mutex wake_mutex_;
@@ -287,6 +285,7 @@ class Bridge final : public TelemetryBridge {
 inline void ParticipantWatcher::on_participant_discovery(fdds::DomainParticipant* /*participant*/,
                                                          rtps::ParticipantDiscoveryInfo&& info) {
   bridge_.participant_changed(info);
+  detail::hold_reply_to_new_participant(info);
 }
 
 inline void CommandWakeup::on_data_available(fdds::DataReader* /*reader*/) { bridge_.command_available(); }

@@ -39,13 +39,14 @@ std::string topic_list(const std::vector<SignalMeta>& metas) {
 void PipelineParticipants::on_participant_discovery(fdds::DomainParticipant*,
                                                     eprosima::fastrtps::rtps::ParticipantDiscoveryInfo&& info) {
   using Info = eprosima::fastrtps::rtps::ParticipantDiscoveryInfo;
-  const auto pipeline = pipeline_of_participant(info.info.m_participantName.to_string());
-  if (!pipeline) return;
-  std::lock_guard lock(mutex_);
-  if (info.status == Info::REMOVED_PARTICIPANT || info.status == Info::DROPPED_PARTICIPANT)
-    live_.erase(info.info.m_guid.guidPrefix);
-  else
-    live_[info.info.m_guid.guidPrefix] = *pipeline;
+  if (const auto pipeline = pipeline_of_participant(info.info.m_participantName.to_string())) {
+    std::lock_guard lock(mutex_);
+    if (info.status == Info::REMOVED_PARTICIPANT || info.status == Info::DROPPED_PARTICIPANT)
+      live_.erase(info.info.m_guid.guidPrefix);
+    else
+      live_[info.info.m_guid.guidPrefix] = *pipeline;
+  }
+  detail::hold_reply_to_new_participant(info);
 }
 
 std::set<std::string> PipelineParticipants::pipelines() const {

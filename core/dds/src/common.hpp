@@ -4,13 +4,16 @@
 #pragma once
 
 #include <algorithm>
+#include <chrono>
 #include <cstdint>
 #include <string>
+#include <thread>
 
 #include <fastdds/dds/domain/DomainParticipant.hpp>
 #include <fastdds/dds/publisher/qos/DataWriterQos.hpp>
 #include <fastdds/dds/subscriber/qos/DataReaderQos.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
+#include <fastdds/rtps/participant/ParticipantDiscoveryInfo.h>
 
 #include "guarded_type.hpp"
 #include "lode/sdk/status.hpp"
@@ -43,6 +46,24 @@ inline Status register_types(fdds::DomainParticipant* participant) {
     return Status::error("could not register lodestone's DDS types with the participant");
   }
   return Status::ok();
+}
+
+/// How long a participant holds its reply to a participant it has just discovered.
+/// Fast DDS 2.9 (RTPSParticipantImpl::enable) sends a new participant's first announcement
+/// to every initial peer (64 ports on 127.0.0.1) and only then starts handing what its
+/// sockets receive to the protocol. A running participant answers that announcement at once
+/// with its own, within a millisecond, often while the newcomer is still sending: the answer
+/// is dropped, the newcomer's later announcements get none (it is no longer new), and it
+/// hears of the running participant only at its next periodic announcement, up to 1 s later
+/// (half of all `lode echo` started beside a pipeline). Discovery listeners are called before
+/// the answer is sent, on the receiving thread: holding there delays the answer until the
+/// newcomer listens. 25 ms is many times the newcomer's announcement on a loaded host.
+inline constexpr std::chrono::milliseconds kNewParticipantReplyHold{25};
+
+/// Call from on_participant_discovery: holds the answer to a newly discovered participant.
+inline void hold_reply_to_new_participant(const eprosima::fastrtps::rtps::ParticipantDiscoveryInfo& info) {
+  if (info.status == eprosima::fastrtps::rtps::ParticipantDiscoveryInfo::DISCOVERED_PARTICIPANT)
+    std::this_thread::sleep_for(kNewParticipantReplyHold);
 }
 
 /// SignalInfo's key: XXH64, seed 0, of the topic name's bytes. Eight bytes travel as
