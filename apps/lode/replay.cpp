@@ -251,10 +251,12 @@ bool check_bit_identical(const Source& source, const Job& job, ConfigResult& cr)
     return true;
   }
   const char* with = source.absolute.c_str();
-  if (!cmp.first_difference.empty())
+  if (!cmp.first_difference.empty()) {
     std::printf("NOT bit-identical with %s: first difference in %s\n", with, cmp.first_difference.c_str());
-  else if (cmp.series == 0)
+    for (const auto& line : largest_differences(source.recording, *replayed)) std::printf("  %s\n", line.c_str());
+  } else if (cmp.series == 0) {
     std::printf("NOT bit-identical with %s: no series in common\n", with);
+  }
   if (!digest_ok)
     std::printf("NOT bit-identical with %s: output digest %s replayed, %s recorded (%s)\n", with, cr.digest.c_str(),
                 recorded_digest.c_str(), cr.digest_algorithm.c_str());

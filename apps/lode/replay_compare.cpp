@@ -1,8 +1,10 @@
 // What a replay is judged by: the recorded configuration bit for bit against the recording,
 // and every estimator's error, noise, NIS consistency and step time.
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <optional>
 #include <set>
 
@@ -59,6 +61,49 @@ BitCompare compare_recordings(const record::Recording& recorded, const record::R
   for (const auto& s : replayed.series)
     if (!seen.count(s.info.name)) r.only_in_one.push_back(s.info.name + " (only in the replay)");
   return r;
+}
+
+std::vector<std::string> largest_differences(const record::Recording& recorded, const record::Recording& replayed) {
+  std::vector<std::string> lines;
+  std::map<std::string, const record::SeriesData*> by_name;
+  for (const auto& s : replayed.series) by_name[s.info.name] = &s;
+  for (const auto& a : recorded.series) {
+    auto it = by_name.find(a.info.name);
+    if (it == by_name.end()) continue;
+    const auto& b = *it->second;
+    if (a.width() != b.width() || a.rows() != b.rows()) continue;  // named by the first difference
+    const std::size_t width = a.width();
+    // Each element's scale: its largest recorded magnitude (an element that crosses zero,
+    // such as a velocity, has no meaningful element-by-element relative difference there).
+    std::vector<double> scale(width, 0.0);
+    for (std::size_t k = 0; k < a.rows(); ++k)
+      for (std::size_t i = 0; i < width; ++i) scale[i] = std::max(scale[i], std::abs(a.values[k * width + i]));
+    double worst = 0.0;
+    std::size_t worst_row = 0, worst_element = 0;
+    bool differs = false;
+    for (std::size_t k = 0; k < a.rows(); ++k) {
+      for (std::size_t i = 0; i < width; ++i) {
+        const double x = a.values[k * width + i], y = b.values[k * width + i];
+        if (std::memcmp(&x, &y, sizeof x) == 0) continue;
+        const double relative = scale[i] > 0.0 ? std::abs(x - y) / scale[i] : std::abs(x - y);
+        // NaN against a number, or a different NaN: as large as a difference gets.
+        const double d = std::isnan(relative) ? std::numeric_limits<double>::infinity() : relative;
+        if (!differs || d > worst) {
+          worst = d;
+          worst_row = k;
+          worst_element = i;
+        }
+        differs = true;
+      }
+    }
+    if (!differs) continue;
+    char buf[320];
+    std::snprintf(buf, sizeof buf, "largest relative difference %.2g in %s.%s at cycle %llu", worst,
+                  a.info.name.c_str(), a.info.names[worst_element].c_str(),
+                  static_cast<unsigned long long>(a.cycle[worst_row]));
+    lines.emplace_back(buf);
+  }
+  return lines;
 }
 
 void estimator_statistics(const CompareHook& hook, const Pipeline& pipeline, int reference_index,

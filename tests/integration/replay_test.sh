@@ -2,6 +2,7 @@
 # `lode replay` end to end:
 #  1. record a kawato_planar run, replay it through the recorded configuration: bit-identical, exit 0;
 #  2. corrupt one recorded raw ADC value (h5py): the replay is no longer bit-identical, exit 1;
+#     move one recorded estimate by 3e-12 relative: the report gives that largest difference;
 #  3. replay through three other estimator sets (config/replay/): the report has 4 estimator
 #     rows with finite statistics; replay speed is printed and asserted loosely (>= 10x).
 # usage: replay_test.sh LODE SOURCE_DIR
@@ -64,6 +65,28 @@ rc=$?
 cat bad.txt
 [ $rc -eq 1 ] || fail "replay of a corrupted recording exited $rc, expected 1"
 grep -q "NOT bit-identical with .*: first difference in series .*cycle 1000" bad.txt || fail "first difference not named at cycle 1000"
+
+# 2b. One recorded estimate moved by 3e-12 of its largest magnitude (what a reordered sum in an
+# estimator does): the check fails and says how large the difference is, where and when, so
+# that a last-bit change is told apart from a real one.
+cp rec.h5 nudged.h5
+element=$($PY - nudged.h5 <<'PY'
+import sys, h5py, numpy as np
+f = h5py.File(sys.argv[1], "r+")
+g = f["signals/kf.pose"]
+name = g.attrs["names"][0]
+d = g[name]
+d[700] = d[700] + 3e-12 * np.abs(d[()]).max()
+print(name)
+PY
+) || fail "nudging a recorded estimate"
+"$LODE" replay nudged.h5 --quiet > nudged.txt 2>&1
+rc=$?
+cat nudged.txt
+[ $rc -eq 1 ] || fail "replay of a recording with a nudged estimate exited $rc, expected 1"
+grep -q "^  largest relative difference 3e-12 in kf.pose.$element at cycle 700$" nudged.txt \
+  || fail "no 'largest relative difference 3e-12 in kf.pose.$element at cycle 700' line"
+[ "$(grep -c "largest relative difference" nudged.txt)" -eq 1 ] || fail "a series other than kf.pose reported as different"
 
 # 3. Three other estimator sets and a comparison report.
 "$LODE" replay rec.h5 --config "$SRC/config/replay/kawato_planar_hybrid.yaml" \

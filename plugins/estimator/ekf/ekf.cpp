@@ -230,6 +230,45 @@ StepStatus ExtendedEstimator::cycle(bool first) noexcept {
     H_P = product(H, P_prior);
     S += product_transposed(H_P, H);
   }
+  if (m == 1) {
+    // One channel, sized or not (the same operations, so the same bits): S is a number,
+    // K = P^- H' / S (a division per state) and P = P^- - K (H P^-), its upper triangle
+    // mirrored, so P is symmetric by construction and positive definite when S > 0. Two 3 x 3
+    // products and a symmetrisation cheaper than the Joseph form, equal to it to rounding.
+    const double s = S(0, 0);
+    if (!(s > 0.0)) return fault("EKF: innovation covariance H P H' + R not positive definite");
+    const int N = sized ? States : static_cast<int>(n);
+    Gain K;
+    Vector x;
+    Matrix P;
+    MVector innovation;
+    K.resize(n, 1);
+    x.resize(n);
+    P.resize(n, n);
+    innovation.resize(1);
+    innovation(0) = y_(0) - y_hat(0);
+    bool finite = true;
+#pragma GCC unroll 4
+    for (int j = 0; j < N; ++j) {
+      K(j, 0) = H_P(0, j) / s;
+      x(j) = x_prior(j) + K(j, 0) * innovation(0);
+      finite &= std::isfinite(x(j));
+    }
+#pragma GCC unroll 4
+    for (int k = 0; k < N; ++k) {
+#pragma GCC unroll 4
+      for (int j = 0; j <= k; ++j) {
+        const double v = P_prior(j, k) - K(j, 0) * H_P(0, k);
+        P(j, k) = v;
+        P(k, j) = v;
+        finite &= std::isfinite(v);
+      }
+    }
+    if (!finite) return fault("EKF: the updated state or covariance is not finite");
+    commit_estimate(x, P, innovation, S.diagonal());
+    gain_ = K;
+    return StepStatus::ok;
+  }
   Gain K;
   if constexpr (Channels == 1) {
     // S is a number: its Cholesky factor is sqrt(S) and the two triangular solves scale by
@@ -295,7 +334,8 @@ StepStatus ExtendedEstimator::cycle(bool first) noexcept {
 }
 
 void ExtendedEstimator::describe_filter(Json& out) const {
-  out["algorithm"] = "extended Kalman filter, additive noise, Joseph-form covariance update";
+  out["algorithm"] = m_ == 1 ? "extended Kalman filter, additive noise, P = P^- - K H P^- (one channel)"
+                            : "extended Kalman filter, additive noise, Joseph-form covariance update";
   out["jacobian"] = jacobian_ == JacobianSource::numerical ? "numerical (forced)"
                     : model_has_jacobian_                  ? "analytic (from the process model)"
                                                            : "central differences (the model has no analytic one)";

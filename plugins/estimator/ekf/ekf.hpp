@@ -14,6 +14,8 @@
 //
 // Time update:         x^- = f(x, u_{k-1}),   P^- = F P F' + Q_k,   F = df/dx at (x, u_{k-1})
 // Measurement update:  S = H P^- H' + R,  K = P^- H' S^-1,  x = x^- + K (y - h(x^-)),
+//                      one channel: P = P^- - K H P^-, its upper triangle mirrored
+//                      (symmetric; positive definite as S > 0); more channels:
 //                      P = (I - K H) P^- (I - K H)' + K R K'   (Joseph form: symmetric and
 //                      positive semidefinite for any gain, under rounding)
 // F is the process model's analytic Jacobian when it has one (plant.suspension with the Euler

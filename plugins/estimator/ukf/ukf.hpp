@@ -133,6 +133,7 @@ class UnscentedCore {
     wm0_ = static_cast<Scalar>(weights.mean0);
     wc0_ = static_cast<Scalar>(weights.cov0);
     wi_ = static_cast<Scalar>(weights.other);
+    centre_weight_ = static_cast<Scalar>(weights.beta - weights.alpha * weights.alpha);
     spread_ = static_cast<Scalar>(weights.spread());
     x_.setZero(n_);
     P_.setIdentity(n_, n_);
@@ -200,9 +201,7 @@ class UnscentedCore {
   // as draw().
   template <class F, class Cov>
   [[gnu::always_inline]] bool predict(F&& f, const Cov& Q) noexcept {
-    if constexpr (kSized) {
-      if (sums_ == Sums::about_centre) return predict_sized(f, Q);
-    }
+    if (sums_ == Sums::about_centre) return predict_about_centre(f, Q);
     std::array<double, kN> x, base, next;  // the first n_ of each are written before they are read
     if (sums_ == Sums::about_centre) {
       for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(centre_(j));
@@ -234,9 +233,7 @@ class UnscentedCore {
   /// eq. 25-31 with the current points (propagated, or drawn when there was no prediction).
   template <class H, class Y, class Noise>
   [[gnu::always_inline]] bool update(H&& h, const Y& y, const Noise& R) noexcept {
-    if constexpr (kSized && Channels == 1) {
-      if (sums_ == Sums::about_centre) return update_sized(h, y(0), R(0, 0));
-    }
+    if (sums_ == Sums::about_centre && m() == 1) return update_about_centre(h, y(0), R(0, 0));
     std::array<double, kN> x;  // the first n_ (m_) of each are written before they are read
     std::array<double, kM> base, out;
     MVector y_hat;
@@ -318,32 +315,65 @@ class UnscentedCore {
   [[nodiscard]] const Gain& gain() const noexcept { return gain_; }
 
  private:
-  /// out = 0.5 (a + a') for the column-major States x States `a`; false when a coefficient
-  /// is not finite. One test from independent per-element tests (a chain of dependent sums
-  /// would wait on each add), shared by predict and update.
-  [[gnu::always_inline]] static bool symmetrised(const std::array<Scalar, States * States>& a,
-                                                 Matrix& out) noexcept {
-    constexpr int N = States;
+  /// out = the symmetric matrix whose upper triangle (row j <= column k) is upper[j + k n]:
+  /// formed once and mirrored, so P is exactly symmetric without averaging it with its
+  /// transpose. False when a coefficient is not finite (one test from independent per-element
+  /// tests: a chain of dependent sums would wait on each add).
+  [[gnu::always_inline]] bool mirrored(const std::array<Scalar, kN * kN>& upper, Matrix& out) const noexcept {
+    const int N = n();
+    out.resize(N, N);  // a no-op for fixed sizes, no allocation for the capacity-sized ones
     bool finite = true;
 #pragma GCC unroll 12
     for (int k = 0; k < N; ++k) {
 #pragma GCC unroll 12
-      for (int j = 0; j < N; ++j) {
-        out(j, k) = Scalar(0.5) * (a[j + k * N] + a[k + j * N]);
-        finite &= std::isfinite(out(j, k));
+      for (int j = 0; j <= k; ++j) {
+        const Scalar v = upper[j + k * N];
+        out(j, k) = v;
+        out(k, j) = v;
+        finite &= std::isfinite(v);
       }
     }
     return finite;
   }
 
-  /// predict() for sizes known at compile time, sums about the centre point: the generic
-  /// code's operations in its order (so its bits) as straight-line scalar code, with the
-  /// moments, + Q, the symmetrisation and the finiteness check in one pass over registers
-  /// instead of four over Eigen temporaries.
+  /// sum_{i>=1} d_i d_i' (upper triangle, column-major) and sum_{i>=1} d_i of the deviations
+  /// in chi_, the points i and N + i (mirror images when drawn) added first: shorter chains
+  /// of dependent adds than one sum over the 2N points, and the pair's +-L cancel early.
+  [[gnu::always_inline]] void deviation_sums(std::array<Scalar, kN>& sum,
+                                             std::array<Scalar, kN * kN>& outer) const noexcept {
+    const int N = n();
+#pragma GCC unroll 12
+    for (int j = 0; j < N; ++j) sum[j] = Scalar(0);
+#pragma GCC unroll 12
+    for (int k = 0; k < N; ++k) {
+#pragma GCC unroll 12
+      for (int j = 0; j <= k; ++j) outer[j + k * N] = Scalar(0);
+    }
+#pragma GCC unroll 12
+    for (int i = 1; i <= N; ++i) {
+#pragma GCC unroll 12
+      for (int j = 0; j < N; ++j) sum[j] += chi_(j, i) + chi_(j, N + i);
+#pragma GCC unroll 12
+      for (int k = 0; k < N; ++k) {
+#pragma GCC unroll 12
+        for (int j = 0; j <= k; ++j) {
+          outer[j + k * N] += chi_(j, i) * chi_(k, i) + chi_(j, N + i) * chi_(k, N + i);
+        }
+      }
+    }
+  }
+
+  /// predict() for sizes known at compile time, sums about the centre point, in one pass:
+  /// with dbar = sum_{i>=1} Wi d_i and d_0 = 0, the moment about the mean expands to
+  ///   sum_i W^c_i (d_i - dbar)(d_i - dbar)' = Wi sum_{i>=1} d_i d_i' + (beta - alpha^2) dbar dbar'
+  /// (sum W^m = 1 and W0c - W0m = 1 - alpha^2 + beta), so the points are read once and the
+  /// +-1e5 weights never multiply dbar dbar' (the generic code's W0c term cancels against its
+  /// other terms; here the coefficient is ~2). Equal to the generic code's result to rounding
+  /// (~1e-15 relative), not bit for bit.
   template <class F, class Cov>
-  [[gnu::always_inline]] bool predict_sized(F& f, const Cov& Q) noexcept {
-    constexpr int N = States;
-    std::array<double, N> x, base, next;
+  [[gnu::always_inline]] bool predict_about_centre(F& f, const Cov& Q) noexcept {
+    const int N = n();
+    std::array<double, kN> x{}, base{}, next{};
 #pragma GCC unroll 12
     for (int j = 0; j < N; ++j) x[j] = static_cast<double>(centre_(j));
     f(x.data(), base.data());
@@ -354,62 +384,41 @@ class UnscentedCore {
 #pragma GCC unroll 12
       for (int j = 0; j < N; ++j) chi_(j, i) = static_cast<Scalar>(next[j] - base[j]);
     }
-    std::array<Scalar, N> mean;
-    std::array<Scalar, N * N> cov;  // column-major, as Matrix
-    std::array<Scalar, N> dbar{};   // x^- - chi_0 = sum_{i>=1} Wi d_i
-    for (int i = 1; i < 2 * N + 1; ++i) {
-#pragma GCC unroll 12
-      for (int j = 0; j < N; ++j) dbar[j] += wi_ * chi_(j, i);
-    }
+    std::array<Scalar, kN> sum{};
+    std::array<Scalar, kN * kN> cov{};  // upper triangle, column-major as Matrix
+    deviation_sums(sum, cov);
+    std::array<Scalar, kN> dbar{};  // x^- - chi_0
+    bool finite = true;
 #pragma GCC unroll 12
     for (int j = 0; j < N; ++j) {
+      dbar[j] = wi_ * sum[j];
       centre_(j) = static_cast<Scalar>(base[j]);
-      mean[j] = centre_(j) + dbar[j];
+      x_(j) = centre_(j) + dbar[j];
       points_mean_(j) = dbar[j];
+      finite &= std::isfinite(x_(j));
     }
     points_mean_valid_ = true;  // until the points are drawn again
-    // cov = W0c dbar dbar' + sum Wi (d_i - dbar)(d_i - dbar)', each term (w d_j) d_k from 0.
 #pragma GCC unroll 12
     for (int k = 0; k < N; ++k) {
 #pragma GCC unroll 12
-      for (int j = 0; j < N; ++j) cov[j + k * N] = Scalar(0) + (wc0_ * dbar[j]) * dbar[k];
-    }
-    for (int i = 1; i < 2 * N + 1; ++i) {
-      std::array<Scalar, N> d, weighted;
-#pragma GCC unroll 12
-      for (int j = 0; j < N; ++j) {
-        d[j] = chi_(j, i) - dbar[j];
-        weighted[j] = wi_ * d[j];
-      }
-#pragma GCC unroll 12
-      for (int k = 0; k < N; ++k) {
-#pragma GCC unroll 12
-        for (int j = 0; j < N; ++j) cov[j + k * N] += weighted[j] * d[k];
+      for (int j = 0; j <= k; ++j) {
+        cov[j + k * N] = (wi_ * cov[j + k * N] + (centre_weight_ * dbar[j]) * dbar[k]) + Q(j, k);
       }
     }
-    // (cov + Q), then 0.5 ((cov + Q) + (cov + Q)').
-#pragma GCC unroll 12
-    for (int k = 0; k < N; ++k) {
-#pragma GCC unroll 12
-      for (int j = 0; j < N; ++j) cov[j + k * N] += Q(j, k);
-    }
-    Matrix P;
-    bool finite = symmetrised(cov, P);
-#pragma GCC unroll 12
-    for (int k = 0; k < N; ++k) finite &= std::isfinite(mean[k]);
+    // A non-finite x_ is kept only until the caller restores the last estimate on the fault.
+    finite &= mirrored(cov, P_);
     if (!finite) return false;
-#pragma GCC unroll 12
-    for (int j = 0; j < N; ++j) x_(j) = mean[j];
-    P_ = P;
     return redraw_ ? draw() : true;
   }
 
-  /// update() for sizes known at compile time and one channel, sums about the centre point:
-  /// the generic code's operations in its order, as scalars (P_yy is a number).
+  /// update() for sizes known at compile time and one channel, sums about the centre point,
+  /// in one pass as predict_sized() (P_yy = Wi sum Y_i^2 + (beta - alpha^2) ybar^2 + R, P_xy
+  /// alike, deviations from Y_0); P_yy is a number, so K = P_xy / P_yy and
+  /// P = P^- - K P_yy K' = P^- - K P_xy', its upper triangle mirrored.
   template <class H>
-  [[gnu::always_inline]] bool update_sized(H& h, Scalar y, Scalar r) noexcept {
-    constexpr int N = States;
-    std::array<double, N> x;
+  [[gnu::always_inline]] bool update_about_centre(H& h, Scalar y, Scalar r) noexcept {
+    const int N = n();
+    std::array<double, kN> x{};
     double base = 0.0;
     double out = 0.0;
 #pragma GCC unroll 12
@@ -422,55 +431,61 @@ class UnscentedCore {
       h(x.data(), &out);
       upsilon_(0, i) = static_cast<Scalar>(out - base);
     }
-    // x^- relative to the centre point: the same sum as the prediction's, which left it in
-    // points_mean_ when these are its points.
-    std::array<Scalar, N> x_dev{};
+    // x^- relative to the centre point: the prediction left it in points_mean_ when these
+    // are its points.
+    std::array<Scalar, kN> x_dev{};
     if (points_mean_valid_) {
 #pragma GCC unroll 12
       for (int j = 0; j < N; ++j) x_dev[j] = points_mean_(j);
     } else {
-      for (int i = 1; i < 2 * N + 1; ++i) {
+      std::array<Scalar, kN> sum{};
 #pragma GCC unroll 12
-        for (int j = 0; j < N; ++j) x_dev[j] += wi_ * chi_(j, i);
+      for (int i = 1; i <= N; ++i) {
+#pragma GCC unroll 12
+        for (int j = 0; j < N; ++j) sum[j] += chi_(j, i) + chi_(j, N + i);
       }
+#pragma GCC unroll 12
+      for (int j = 0; j < N; ++j) x_dev[j] = wi_ * sum[j];
     }
-    Scalar y_dev = Scalar(0);  // y^ relative to Y_0
-    for (int i = 1; i < 2 * N + 1; ++i) y_dev += wi_ * upsilon_(0, i);
+    Scalar y_sum = Scalar(0), yy = Scalar(0);
+    std::array<Scalar, kN> xy{};
+#pragma GCC unroll 12
+    for (int i = 1; i <= N; ++i) {
+      const Scalar a = upsilon_(0, i), b = upsilon_(0, N + i);
+      y_sum += a + b;
+      yy += a * a + b * b;
+#pragma GCC unroll 12
+      for (int j = 0; j < N; ++j) xy[j] += chi_(j, i) * a + chi_(j, N + i) * b;
+    }
+    const Scalar y_dev = wi_ * y_sum;  // y^ relative to Y_0
     const Scalar y_centre = static_cast<Scalar>(base);
     const Scalar y_hat = y_centre + y_dev;
-    Scalar Pyy = r;
-    std::array<Scalar, N> Pxy{};
-    for (int i = 0; i < 2 * N + 1; ++i) {
-      const Scalar w = i == 0 ? wc0_ : wi_;
-      const Scalar dy = upsilon_(0, i) - y_dev;
-      Pyy += (w * dy) * dy;
+    const Scalar weighted_y_dev = centre_weight_ * y_dev;
+    const Scalar Pyy = (wi_ * yy + weighted_y_dev * y_dev) + r;
+    // eq. 29. Not > 0 covers NaN: a non-finite P_yy faults here.
+    if (!(Pyy > Scalar(0))) return false;
+    std::array<Scalar, kN> Pxy{}, K{};
 #pragma GCC unroll 12
-      for (int j = 0; j < N; ++j) Pxy[j] += (w * (chi_(j, i) - x_dev[j])) * dy;
+    for (int j = 0; j < N; ++j) {
+      Pxy[j] = wi_ * xy[j] + x_dev[j] * weighted_y_dev;
+      K[j] = Pxy[j] / Pyy;
     }
-    // eq. 29 with P_yy a number: its Cholesky factor is sqrt(P_yy) and the two triangular
-    // solves scale by its reciprocal, as Eigen's LLT solve does (a division by P_yy would
-    // round differently).
-    if (!(Pyy > Scalar(0)) && !std::isnan(Pyy)) return false;
-    const Scalar inverse_root = Scalar(1) / std::sqrt(Pyy);
-    std::array<Scalar, N> K;
-#pragma GCC unroll 12
-    for (int j = 0; j < N; ++j) K[j] = (Pxy[j] * inverse_root) * inverse_root;
     const Scalar innovation = (y - y_centre) - y_dev;  // no cancellation of |y|
-    std::array<Scalar, N> x_new;
+    std::array<Scalar, kN> x_new{};
     bool finite = true;
 #pragma GCC unroll 12
     for (int j = 0; j < N; ++j) {
       x_new[j] = x_(j) + K[j] * innovation;  // eq. 30
       finite &= std::isfinite(x_new[j]);
     }
-    std::array<Scalar, N * N> P;  // eq. 31: P^- - K P_yy K'
+    std::array<Scalar, kN * kN> P{};  // eq. 31, the upper triangle
 #pragma GCC unroll 12
     for (int k = 0; k < N; ++k) {
 #pragma GCC unroll 12
-      for (int j = 0; j < N; ++j) P[j + k * N] = P_(j, k) - (K[j] * Pyy) * K[k];
+      for (int j = 0; j <= k; ++j) P[j + k * N] = P_(j, k) - K[j] * Pxy[k];
     }
     Matrix P_sym;
-    finite &= symmetrised(P, P_sym);
+    finite &= mirrored(P, P_sym);
     if (!finite) return false;
 #pragma GCC unroll 12
     for (int j = 0; j < N; ++j) {
@@ -573,6 +588,7 @@ class UnscentedCore {
   Sums sums_ = Sums::about_centre;
   bool redraw_ = false;
   Scalar wm0_{}, wc0_{}, wi_{}, spread_{};
+  Scalar centre_weight_{};  ///< beta - alpha^2 = W0c - W0m: the weight of dbar dbar' in the one-pass sums
   Vector x_;
   Matrix P_;
   Vector centre_;     ///< chi_0 (about_centre)

@@ -183,9 +183,10 @@ class ModelEstimator : public Block, public EstimatorState {
   bool analytic_process_jacobian(const double* x, const double* u, StateMatrix& F) const noexcept {
     return analytic_process_jacobian_into(x, u, F);
   }
-  /// The same into any n x n Eigen storage.
+  /// The same into any n x n Eigen storage. Forced inline: as a template member in a
+  /// position-independent plugin it was called through the PLT on every EKF cycle.
   template <class Jacobian>
-  bool analytic_process_jacobian_into(const double* x, const double* u, Jacobian& F) const noexcept {
+  [[gnu::always_inline]] bool analytic_process_jacobian_into(const double* x, const double* u, Jacobian& F) const noexcept {
     constexpr int kSized = Jacobian::RowsAtCompileTime;
     if constexpr (kSized != Eigen::Dynamic) {  // n x n known here: no loops over n_, no memset call
       Eigen::Matrix<double, kSized, kSized, Eigen::RowMajor> row_major;
