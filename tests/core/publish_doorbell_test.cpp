@@ -24,26 +24,38 @@ TEST(PublishDoorbell, WaitTimesOutWithoutARing) {
 
 TEST(PublishDoorbell, ARingWakesASleepingWaiterLongBeforeItsTimeout) {
   lode::PublishDoorbell doorbell;
-  const std::uint32_t seen = doorbell.sequence();
+  const std::uint32_t first_seen = doorbell.sequence();
   std::atomic<bool> woken{false};
   std::atomic<bool> returned{false};
+  std::atomic<bool> give_up{false};
   std::thread waiter([&] {
-    woken = doorbell.wait(seen, 60s);
+    // A ring that lands before the waiter is asleep moves the sequence and wait() returns at
+    // once without sleeping (as it must); on a loaded host the thread may start that late.
+    // Then wait again, so that some ring has to find this thread asleep and wake it.
+    std::uint32_t seen = first_seen;
+    bool rung = false;
+    do {
+      rung = doorbell.wait(seen, 60s);
+      seen = doorbell.sequence();
+    } while (doorbell.wakes() == 0 && !give_up);
+    woken = rung;
     returned = true;
   });
-  // Ring only once the waiter has said it sleeps, so this ring has to make the system call.
-  for (int i = 0; i < 5000 && doorbell.wakes() == 0; ++i) {
+  // Ring once a millisecond until the waiter is through: it goes on waiting until some ring
+  // has had to make the wake-up system call, i.e. found it asleep.
+  for (int i = 0; i < 5000 && !returned; ++i) {
     std::this_thread::sleep_for(1ms);
     doorbell.ring();
   }
-  for (int i = 0; i < 5000 && !returned; ++i) std::this_thread::sleep_for(1ms);
   const bool woken_by_ring = returned;
+  give_up = true;
   doorbell.wake_all();  // whatever happened, end the wait so the thread can be joined
   waiter.join();
-  ASSERT_TRUE(woken_by_ring) << "the waiter still slept 5 s after the ring: ring() did not wake it (its timeout is 60 s)";
+  ASSERT_GE(doorbell.wakes(), 1u) << "5000 rings, one a millisecond, and none found the waiter asleep";
+  ASSERT_TRUE(woken_by_ring) << "the waiter still slept after 5 s of rings: ring() did not wake it (its timeout "
+                                "is 60 s)";
   EXPECT_TRUE(woken) << "wait() reported a timeout, but it was rung";
-  EXPECT_NE(doorbell.sequence(), seen);
-  EXPECT_GE(doorbell.wakes(), 1u);
+  EXPECT_NE(doorbell.sequence(), first_seen);
 }
 
 TEST(PublishDoorbell, AnAwakeConsumerCostsTheRingerNoSystemCall) {
