@@ -48,7 +48,7 @@ constexpr const char* kConfig = LODE_SOURCE_DIR "/config/kawato_planar.yaml";
 constexpr std::uint64_t kBatch = 800;  // one simulated second
 // `lode run --clock sim` times the ops of one cycle in this many (kSimulatedTimingStride in
 // apps/lode/run_services.hpp, whose header needs the DDS bridge's: keep the two equal).
-constexpr std::uint64_t kTimingStride = 8;
+constexpr std::uint64_t kTimingStride = 64;
 // A multiple of every timing stride, so each batch times the same share of its cycles.
 constexpr std::uint64_t kPairBatch = 64;
 static_assert(kPairBatch % kTimingStride == 0);
