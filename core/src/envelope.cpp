@@ -1,5 +1,6 @@
 #include "envelope.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -17,18 +18,15 @@ void Envelope::add(Limit limit) {
 void Envelope::flatten() {
   bounds_.clear();
   rates_.clear();
-  budgeted_.clear();
-  flat_.clear();
   for (std::size_t l = 0; l < limits_.size(); ++l) {
     const Limit& limit = limits_[l];
     State& state = states_[l];
-    if (limit.max_invalid_ns >= 0) {
-      budgeted_.push_back(l);
-      continue;
-    }
-    flat_.push_back(l);
+    // With an invalid budget a non-finite value is judged by its time, not its bounds: every
+    // non-finite value must leave the fast path, so unbounded becomes +-DBL_MAX there.
+    const double widest = limit.max_invalid_ns >= 0 ? std::numeric_limits<double>::max()
+                                                    : std::numeric_limits<double>::infinity();
     for (std::size_t i = 0; i < state.previous.size(); ++i) {
-      bounds_.push_back({limit.data + i, limit.min[i], limit.max[i]});
+      bounds_.push_back({limit.data + i, std::max(limit.min[i], -widest), std::min(limit.max[i], widest)});
       if (limit.max_rate[i] < std::numeric_limits<double>::infinity())
         rates_.push_back({limit.data + i, &state.previous[i], &state.have_previous, limit.max_rate[i]});
     }
@@ -67,10 +65,13 @@ bool Envelope::check(const Tick& tick) noexcept {
   }
   // Anything not plainly inside: the reference decides and names the first breach.
   if (!inside) return check_each(tick);
-  for (const std::size_t l : budgeted_)
-    if (!check_limit(l, tick)) return false;
+  // What check_limit leaves behind when every value is inside, and finite where invalid values
+  // have a budget (previous values are read only where a rate is limited).
   for (const RateBound& r : rates_) *r.previous = *r.value;
-  for (const std::size_t l : flat_) states_[l].have_previous = true;
+  for (State& state : states_) {
+    state.have_previous = true;
+    state.invalid_since_ns = -1;
+  }
   return true;
 }
 

@@ -75,9 +75,8 @@ class Envelope {
   void flatten();
 
   // The fast path: the envelope is checked every cycle, and nearly every cycle every value is
-  // inside. Limits without an invalid budget become flat (value, min, max) entries tested
-  // without a branch (a NaN fails both comparisons, as in check_limit), and their rate-limited
-  // elements a short list of their own; limits with an invalid budget keep check_limit().
+  // inside. Every limited element becomes a flat (value, min, max) entry tested without a
+  // branch (a NaN fails both comparisons), the rate-limited ones a short list of their own.
   struct Bound {
     const double* value;
     double min, max;
@@ -90,8 +89,6 @@ class Envelope {
   };
   std::vector<Bound> bounds_;
   std::vector<RateBound> rates_;
-  std::vector<std::size_t> budgeted_;  ///< limits with max_invalid_ns >= 0
-  std::vector<std::size_t> flat_;      ///< the others (bounds_ and rates_ hold their elements)
 
   std::vector<Limit> limits_;
   std::vector<State> states_;
