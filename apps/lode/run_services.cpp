@@ -76,7 +76,7 @@ Expected<std::unique_ptr<RunServices>> RunServices::start(Pipeline& pipeline, Sc
   im.spec = pipeline.telemetry();
   if (options.domain) im.spec.domain = *options.domain;
   const bool telemetry = im.spec.enabled && options.telemetry;
-  // A simulated run (lode run --clock sim, lode replay) times the ops of one cycle in eight:
+  // A simulated run (lode run --clock sim, lode replay) times the ops of one cycle in 64:
   // timing every op of every cycle was a fifth of kawato_planar's simulated cycle, and the
   // per-block statistics it reports (summary, timing topic, replay's median step) need the
   // distribution, not every sample. A real-clock run times every cycle: its worst case matters.

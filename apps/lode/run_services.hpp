@@ -22,8 +22,11 @@
 
 namespace lode::cli {
 
-/// On the simulated clock, the ops of one cycle in this many are timed (Scheduler).
-inline constexpr std::uint64_t kSimulatedTimingStride = 8;
+/// On the simulated clock, the ops of one cycle in this many are timed (Scheduler): at 64 the
+/// clock reads and histogram updates are 0.1 % of kawato_planar's cycle's instructions (0.8 %
+/// at 8), and a 10 s run at 800 Hz still gives each block 125 samples for its median and
+/// percentiles.
+inline constexpr std::uint64_t kSimulatedTimingStride = 64;
 
 struct RunServiceOptions {
   bool telemetry = true;             ///< start the DDS bridge when the YAML has `telemetry:`

@@ -1,5 +1,6 @@
 #include "envelope.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -11,6 +12,25 @@ void Envelope::add(Limit limit) {
   s.previous.assign(limit.elements ? limit.elements->size() : 0, 0.0);
   states_.push_back(std::move(s));
   limits_.push_back(std::move(limit));
+  flatten();
+}
+
+void Envelope::flatten() {
+  bounds_.clear();
+  rates_.clear();
+  for (std::size_t l = 0; l < limits_.size(); ++l) {
+    const Limit& limit = limits_[l];
+    State& state = states_[l];
+    // With an invalid budget a non-finite value is judged by its time, not its bounds: every
+    // non-finite value must leave the fast path, so unbounded becomes +-DBL_MAX there.
+    const double widest = limit.max_invalid_ns >= 0 ? std::numeric_limits<double>::max()
+                                                    : std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < state.previous.size(); ++i) {
+      bounds_.push_back({limit.data + i, std::max(limit.min[i], -widest), std::min(limit.max[i], widest)});
+      if (limit.max_rate[i] < std::numeric_limits<double>::infinity())
+        rates_.push_back({limit.data + i, &state.previous[i], &state.have_previous, limit.max_rate[i]});
+    }
+  }
 }
 
 void Envelope::reset() noexcept {
@@ -31,7 +51,38 @@ bool Envelope::breach(std::size_t limit, std::size_t element, Breach what, doubl
 }
 
 bool Envelope::check(const Tick& tick) noexcept {
-  for (std::size_t l = 0; l < limits_.size(); ++l) {
+  bool inside = true;
+  for (const Bound& b : bounds_) {
+    const double v = *b.value;
+    inside &= (v >= b.min) & (v <= b.max);
+  }
+  // Inside its bounds a value is not NaN; an unbounded one may be infinite, which has no rate
+  // here (as in check_limit).
+  for (const RateBound& r : rates_) {
+    const double v = *r.value, previous = *r.previous;
+    if (*r.have_previous && std::isfinite(previous) && std::isfinite(v))
+      inside &= !(std::abs(v - previous) / tick.dt_s > r.max_rate);
+  }
+  // Anything not plainly inside: the reference decides and names the first breach.
+  if (!inside) return check_each(tick);
+  // What check_limit leaves behind when every value is inside, and finite where invalid values
+  // have a budget (previous values are read only where a rate is limited).
+  for (const RateBound& r : rates_) *r.previous = *r.value;
+  for (State& state : states_) {
+    state.have_previous = true;
+    state.invalid_since_ns = -1;
+  }
+  return true;
+}
+
+bool Envelope::check_each(const Tick& tick) noexcept {
+  for (std::size_t l = 0; l < limits_.size(); ++l)
+    if (!check_limit(l, tick)) return false;
+  return true;
+}
+
+bool Envelope::check_limit(std::size_t l, const Tick& tick) noexcept {
+  {
     const Limit& limit = limits_[l];
     State& state = states_[l];
     const std::size_t n = state.previous.size();

@@ -34,6 +34,11 @@ class Envelope {
     std::int64_t max_invalid_ns = -1;
   };
 
+  Envelope() = default;
+  // The fast path's entries point into limits_ and states_.
+  Envelope(const Envelope&) = delete;
+  Envelope& operator=(const Envelope&) = delete;
+
   void add(Limit limit);
   [[nodiscard]] bool empty() const { return limits_.empty(); }
   /// Before the first cycle of a run: forget the previous values and the first violation.
@@ -61,6 +66,29 @@ class Envelope {
   };
   bool breach(std::size_t limit, std::size_t element, Breach what, double value, double bound,
               const Tick& tick) noexcept;
+  /// Every limit in order, as specified, naming the first breach: the reference the fast path
+  /// of check() defers to whenever it sees anything that is not plainly inside.
+  bool check_each(const Tick& tick) noexcept;
+  /// One limit of check_each(); updates its state (previous values, invalid since) when inside.
+  bool check_limit(std::size_t l, const Tick& tick) noexcept;
+  /// Rebuilds the flat arrays below from limits_ (at configure time, after each add()).
+  void flatten();
+
+  // The fast path: the envelope is checked every cycle, and nearly every cycle every value is
+  // inside. Every limited element becomes a flat (value, min, max) entry tested without a
+  // branch (a NaN fails both comparisons), the rate-limited ones a short list of their own.
+  struct Bound {
+    const double* value;
+    double min, max;
+  };
+  struct RateBound {
+    const double* value;
+    double* previous;
+    const bool* have_previous;
+    double max_rate;
+  };
+  std::vector<Bound> bounds_;
+  std::vector<RateBound> rates_;
 
   std::vector<Limit> limits_;
   std::vector<State> states_;

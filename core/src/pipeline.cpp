@@ -152,32 +152,59 @@ void Pipeline::drive_safe() noexcept {
 
 std::string Pipeline::envelope_violation() const { return impl_->envelope.violation_text(); }
 
+namespace {
+/// An op with something around its step: timed (op statistics, a step budget) or watched
+/// (health monitor, shadows, a warming candidate). Out of line: most ops of most cycles are not.
+[[gnu::noinline]] StepStatus run_watched(Pipeline::Impl& impl, Pipeline::Op& op, const Tick& tick, bool time_ops,
+                                         const char*& reason) noexcept {
+  pipeline_detail::Family* family =
+      op.family >= 0 ? &impl.families[static_cast<std::size_t>(op.family)] : nullptr;
+  const bool timed = time_ops || (family && family->health.step_budget_ns > 0);
+  const std::int64_t start = timed ? monotonic_ns() : 0;
+  StepStatus s = op.write_phase ? op.board->write(tick) : op.block->step(tick);
+  const std::int64_t elapsed = timed ? monotonic_ns() - start : 0;
+  if (time_ops) op.exec_time->record(elapsed);
+  if (family && (family->health.enabled || !family->shadows.empty() || family->warming))
+    s = impl.after_primary(*family, tick, s, elapsed, reason);
+  return s;
+}
+
+/// Whether the op's step needs run_watched (read every cycle: a hot swap may add shadows or a
+/// warming candidate while the pipeline runs).
+bool watched(const Pipeline::Impl& impl, const Pipeline::Op& op, bool time_ops) noexcept {
+  if (time_ops) return true;
+  if (op.family < 0) return false;
+  const pipeline_detail::Family& f = impl.families[static_cast<std::size_t>(op.family)];
+  return f.health.step_budget_ns > 0 || f.health.enabled || !f.shadows.empty() || f.warming;
+}
+}  // namespace
+
 Pipeline::CycleResult Pipeline::run_cycle(const Tick& tick, bool time_ops) noexcept {
-  auto& ops = impl_->ops;
-  const bool supervised = !impl_->envelope.empty();
-  for (std::size_t i = 0; i < ops.size(); ++i) {
-    if (supervised && i == impl_->envelope_at && !impl_->envelope.check(tick)) {
+  // Locals: the blocks' virtual calls could, as far as the compiler knows, change impl_'s
+  // members, which would then be reloaded around every op.
+  Impl& impl = *impl_;
+  Op* const ops = impl.ops.data();
+  const std::size_t n = impl.ops.size();
+  // The envelope is checked before op envelope_at (n: after the last op); without one, never.
+  const std::size_t envelope_at = impl.envelope.empty() ? n + 1 : impl.envelope_at;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i == envelope_at && !impl.envelope.check(tick)) {
       drive_safe();
       return {StepStatus::fault, static_cast<int>(i), nullptr, true};
     }
     Op& op = ops[i];
-    Family* family = op.family >= 0 ? &impl_->families[static_cast<std::size_t>(op.family)] : nullptr;
-    const bool timed = time_ops || (family && family->health.step_budget_ns > 0);
-    const std::int64_t start = timed ? monotonic_ns() : 0;
-    StepStatus s = op.write_phase ? op.board->write(tick) : op.block->step(tick);
-    const std::int64_t elapsed = timed ? monotonic_ns() - start : 0;
-    if (time_ops) op.exec_time->record(elapsed);
     const char* reason = nullptr;
-    if (family && (family->health.enabled || !family->shadows.empty() || family->warming))
-      s = impl_->after_primary(*family, tick, s, elapsed, reason);
+    StepStatus s;
+    if (watched(impl, op, time_ops)) s = run_watched(impl, op, tick, time_ops, reason);
+    else s = op.write_phase ? op.board->write(tick) : op.block->step(tick);
     if (s != StepStatus::ok) {
       drive_safe();
       return {s, static_cast<int>(i), reason};
     }
   }
-  if (supervised && impl_->envelope_at == ops.size() && !impl_->envelope.check(tick)) {
+  if (envelope_at == n && !impl.envelope.check(tick)) {
     drive_safe();
-    return {StepStatus::fault, static_cast<int>(ops.size()) - 1, nullptr, true};
+    return {StepStatus::fault, static_cast<int>(n) - 1, nullptr, true};
   }
   return {};
 }
