@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <optional>
 #include <sstream>
 
@@ -50,17 +51,19 @@ ReplayArgs replay_args(const Args& args) {
 struct Source {
   std::string path;  ///< as the user gave it (for messages)
   std::string absolute;
-  record::Recording recording;
+  /// Read once: the io.replay blocks of every configuration play back this same copy
+  /// (record::read_recording_shared) while it is held here.
+  std::shared_ptr<const record::Recording> recording;
   std::size_t rows = 0;  ///< cycles to replay
   DigestAlgorithm digest = kLegacyDigestAlgorithm;  ///< what its output_digest was computed with
 
   [[nodiscard]] std::string text(const std::string& key) const {
-    auto it = recording.text_attributes.find(key);
-    return it == recording.text_attributes.end() ? "" : it->second;
+    auto it = recording->text_attributes.find(key);
+    return it == recording->text_attributes.end() ? "" : it->second;
   }
   [[nodiscard]] std::optional<double> number(const std::string& key) const {
-    auto it = recording.number_attributes.find(key);
-    if (it == recording.number_attributes.end()) return std::nullopt;
+    auto it = recording->number_attributes.find(key);
+    if (it == recording->number_attributes.end()) return std::nullopt;
     return it->second;
   }
 };
@@ -71,7 +74,7 @@ std::optional<Source> open_recording(const std::string& path) {
   s.path = path;
   std::error_code ec;
   s.absolute = fs::absolute(path, ec).lexically_normal().string();
-  auto rec = record::read_recording(s.absolute);
+  auto rec = record::read_recording_shared(s.absolute);
   if (!rec) {
     std::fprintf(stderr, "lode: replay: %s\n", rec.error().c_str());
     return std::nullopt;
@@ -94,7 +97,7 @@ std::optional<Source> open_recording(const std::string& path) {
   // The number of cycles to run: the rows of the raw series (every one is checked for
   // gaps by io.replay), else of any series.
   std::uint64_t first_cycle = 0;
-  for (const auto& series : s.recording.series) {
+  for (const auto& series : s.recording->series) {
     if (series.rows() == 0) continue;
     if (s.rows == 0 || series.info.kind == "raw") {
       s.rows = series.rows();
@@ -242,7 +245,7 @@ bool check_bit_identical(const Source& source, const Job& job, ConfigResult& cr)
     return false;
   }
   const std::string recorded_digest = source.text("output_digest");
-  const auto cmp = compare_recordings(source.recording, *replayed);
+  const auto cmp = compare_recordings(*source.recording, *replayed);
   for (const auto& s : cmp.only_in_one) cr.notes.push_back("not compared: " + s);
   const bool digest_ok = recorded_digest.empty() || recorded_digest == cr.digest;
   if (cmp.first_difference.empty() && digest_ok && cmp.series > 0) {

@@ -16,6 +16,7 @@
 #include <fstream>
 #include <limits>
 #include <random>
+#include <thread>
 
 namespace lode::record {
 namespace {
@@ -244,6 +245,34 @@ TEST(Hdf5RecorderTest, KnownLengthBulkRowsReadBackExactly) {
       EXPECT_EQ(s.out_of_order, 0U);
     }
   }
+}
+
+// lode replay and its io.replay blocks read one recording: the second read is the first's
+// copy while that is held, and a file rewritten in between is read again.
+TEST(Hdf5RecorderTest, SharedReadIsOneCopyUntilTheFileChanges) {
+  const std::string path = scratch_path("shared.h5");
+  auto write = [&](double value) {
+    auto recorder = Recorder::create(path, "lode run");
+    ASSERT_TRUE(recorder) << recorder.error();
+    auto handle = (*recorder)->add_series({"stage.counts", "", "raw", {"x"}, {""}, 800.0, 800.0, 1});
+    ASSERT_TRUE(handle) << handle.error();
+    for (std::uint64_t cycle = 0; cycle < 100; ++cycle) (*recorder)->append(*handle, cycle, 0, 0, &value);
+    ASSERT_TRUE((*recorder)->close());
+  };
+  write(1.0);
+  auto first = read_recording_shared(path);
+  ASSERT_TRUE(first) << first.error();
+  auto again = read_recording_shared(path);
+  ASSERT_TRUE(again) << again.error();
+  EXPECT_EQ(first->get(), again->get()) << "the second read of an unchanged file is not the held copy";
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));  // a later modification time
+  write(2.0);
+  auto rewritten = read_recording_shared(path);
+  ASSERT_TRUE(rewritten) << rewritten.error();
+  EXPECT_NE(first->get(), rewritten->get()) << "a rewritten file was not read again";
+  ASSERT_EQ((*rewritten)->series.size(), 1U);
+  EXPECT_EQ((*rewritten)->series.front().values.front(), 2.0);
+  EXPECT_FALSE(read_recording_shared(scratch_path("missing.h5"))) << "a missing file must be an error";
 }
 
 TEST(Hdf5RecorderTest, SkippedCyclesAreCountedAsGaps) {

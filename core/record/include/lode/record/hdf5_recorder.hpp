@@ -143,4 +143,10 @@ struct Recording {
 /// Reads a whole recording written by Recorder (also one whose writer crashed after a flush).
 Expected<Recording> read_recording(const std::string& path);
 
+/// read_recording(), read once per process while someone holds the result: a second call for
+/// the same file (same device, inode, size and modification time) returns the recording the
+/// first one read, without reading the file again. `lode replay` reads a recording and then
+/// configures io.replay blocks that play it back: they share one copy.
+Expected<std::shared_ptr<const Recording>> read_recording_shared(const std::string& path);
+
 }  // namespace lode::record
