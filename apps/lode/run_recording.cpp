@@ -35,9 +35,9 @@ RunRecorder::RunRecorder(const Pipeline& pipeline, Scheduler& scheduler, EventLo
   blocks_json_ = blocks.dump(-1);
 }
 
-Status RunRecorder::open(const std::string& path) {
+Status RunRecorder::open(const std::string& path, std::uint64_t expected_cycles) {
   std::lock_guard lock(mutex_);
-  return open_locked(path);
+  return open_locked(path, expected_cycles);
 }
 
 void RunRecorder::on_idle() {
@@ -56,11 +56,12 @@ Json RunRecorder::finished() const {
   return finished_;
 }
 
-Status RunRecorder::open_locked(const std::string& path) {
+Status RunRecorder::open_locked(const std::string& path, std::uint64_t expected_cycles) {
   if (recorder_) return Status::error("already recording to " + path_ + " (record_stop first)");
   auto r = record::Recorder::create(path, "lode run");
   if (!r) return Status::error(r.error());
   recorder_ = std::move(*r);
+  if (expected_cycles > 0) recorder_->expect_rows(expected_cycles);
   recorder_->set_attribute("pipeline", pipeline_.name());
   recorder_->set_attribute("config_file", pipeline_.source_file());
   recorder_->set_attribute("config", pipeline_.source_text());
@@ -109,13 +110,20 @@ void RunRecorder::drain_locked() {
   tap_.tap().drain(rows_);
   const auto& tap = tap_.tap();
   const std::size_t stride = tap.stride();
-  for (std::size_t k = 0; k + stride <= rows_.size(); k += stride) {
-    const auto cycle = static_cast<std::uint64_t>(rows_[k]);
-    const auto stamp = static_cast<std::int64_t>(std::llround(rows_[k + 1] * 1e9));
-    if (!first_cycle_) first_cycle_ = cycle;
+  const std::size_t count = rows_.size() / stride;
+  if (count > 0) {
+    // Every series gets the whole batch in one call: the per-row work is the transposition.
+    row_cycles_.resize(count);
+    row_stamps_.resize(count);
+    for (std::size_t r = 0; r < count; ++r) {
+      row_cycles_[r] = static_cast<std::uint64_t>(rows_[r * stride]);
+      row_stamps_[r] = static_cast<std::int64_t>(std::llround(rows_[r * stride + 1] * 1e9));
+    }
+    if (!first_cycle_) first_cycle_ = row_cycles_.front();
     for (std::size_t i = 0; i < series_.size(); ++i)
-      recorder_->append(series_[i], cycle, stamp, 0, rows_.data() + k + tap.column(i));
-    ++recorded_cycles_;
+      recorder_->append_rows(series_[i], count, row_cycles_.data(), row_stamps_.data(), rows_.data() + tap.column(i),
+                             stride);
+    recorded_cycles_ += count;
   }
   for (const auto& e : events_.since(event_cursor_)) recorder_->add_event(e.cycle, e.time_ns, e.kind, e.text);
 }

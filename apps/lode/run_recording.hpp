@@ -32,8 +32,9 @@ class RunRecorder {
 
   /// The hook to add to the scheduler (RT side: copies the outputs while a file is open).
   [[nodiscard]] CycleHook& hook() { return tap_; }
-  /// Opens FILE and starts recording at the next cycle.
-  Status open(const std::string& path);
+  /// Opens FILE and starts recording at the next cycle; `expected_cycles` > 0 when the run's
+  /// length is known (a replay), so the file is laid out for it (Recorder::expect_rows).
+  Status open(const std::string& path, std::uint64_t expected_cycles = 0);
   void set_running(bool running) { running_.store(running); }
   /// Off the RT thread, between cycles: drain the tap, flush when the interval has passed.
   void on_idle();
@@ -63,7 +64,7 @@ class RunRecorder {
   };
 
   // Each with mutex_ held.
-  Status open_locked(const std::string& path);
+  Status open_locked(const std::string& path, std::uint64_t expected_cycles = 0);
   void drain_locked();
   void flush_locked(bool force);
   void failed_locked(const std::string& why);
@@ -87,6 +88,8 @@ class RunRecorder {
   std::string path_;
   std::vector<int> series_;  // per tapped signal
   std::vector<double> rows_;
+  std::vector<std::uint64_t> row_cycles_;  // of the rows drained, for Recorder::append_rows
+  std::vector<std::int64_t> row_stamps_;
   std::size_t event_cursor_ = 0;
   std::uint64_t recorded_cycles_ = 0;
   std::uint64_t flushed_cycles_ = 0;  // recorded_cycles_ at the last flush that succeeded

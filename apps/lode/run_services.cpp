@@ -96,7 +96,7 @@ Expected<std::unique_ptr<RunServices>> RunServices::start(Pipeline& pipeline, Sc
   scheduler.add_hook(&im.recorder->hook());
   im.control->set_record_handler([&im](const ControlRequest& r) { return im.recorder->handle(r); });
   if (!options.record_path.empty()) {
-    if (auto st = im.recorder->open(options.record_path); !st) return st;
+    if (auto st = im.recorder->open(options.record_path, options.record_rows); !st) return st;
   }
   if (options.local_control) {
     auto server = LocalControlServer::start(*im.control, pipeline.name());

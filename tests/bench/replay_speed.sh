@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # How fast `lode replay` runs a recording: records DURATION seconds of kawato_planar (simulated
 # clock) once, replays it RUNS times, and prints each run's speed as `lode replay` reports it
-# (recorded cycles / wall time of the replayed cycles, the recorder's HDF5 writes included) and
-# as the whole command (reading the recording twice, the run, closing and re-reading the
-# replay's file for the bit-for-bit check), then the medians.
+# (recorded cycles / wall time of the replayed cycles and of writing and closing the replay's
+# file) and as the whole command (starting lode, reading the recording once, the run, reading
+# the replay's file back for the bit-for-bit check), then the medians.
 # usage: tests/bench/replay_speed.sh [BUILD_DIR] [DURATION_S] [RUNS]
 set -u
 BUILD=${1:-build}

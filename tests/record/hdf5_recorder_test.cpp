@@ -16,6 +16,7 @@
 #include <fstream>
 #include <limits>
 #include <random>
+#include <thread>
 
 namespace lode::record {
 namespace {
@@ -194,6 +195,84 @@ TEST(Hdf5RecorderTest, RoundTripIsBitIdentical) {
   EXPECT_EQ(dataset_name_for(".", 2), "value_.");
   EXPECT_EQ(dataset_name_for("θ", 2), "θ");
   fs::remove_all(fs::path(path).parent_path());
+}
+
+// A replay knows its length: the datasets are made at that size and filled in bulk. What the
+// file holds must not depend on it: rows appended in bulk read back bit for bit, a run that
+// ends early leaves no fill rows behind, and one that runs longer extends the datasets.
+TEST(Hdf5RecorderTest, KnownLengthBulkRowsReadBackExactly) {
+  for (const std::uint64_t appended : {std::uint64_t{40'000}, std::uint64_t{25'001}, std::uint64_t{41'000}}) {
+    const std::string path = scratch_path("known_length_" + std::to_string(appended) + ".h5");
+    {
+      auto recorder = Recorder::create(path, "lode run");
+      ASSERT_TRUE(recorder) << recorder.error();
+      Recorder& rec = **recorder;
+      rec.expect_rows(40'000);
+      const SeriesInfo info{"kf.pose", "", "signal", {"x", "y", "theta_z"}, {"m", "m", "rad"}, 800.0, 800.0, 1};
+      auto handle = rec.add_series(info);
+      ASSERT_TRUE(handle) << handle.error();
+      // Rows as a tap drains them: a cycle, a time and the values, several series per row.
+      constexpr std::size_t kStride = 5;
+      AwkwardDoubles doubles;
+      std::vector<double> rows(appended * kStride);
+      std::vector<std::uint64_t> cycles(appended);
+      std::vector<std::int64_t> stamps(appended);
+      for (std::uint64_t r = 0; r < appended; ++r) {
+        cycles[r] = r;
+        stamps[r] = static_cast<std::int64_t>(r) * 1'250'000;
+        for (std::size_t v = 0; v < kStride; ++v) rows[r * kStride + v] = doubles.next();
+      }
+      // In uneven batches, as the idle drain delivers them, across chunk boundaries.
+      for (std::size_t done = 0, batch = 1000; done < appended; done += batch, batch = batch * 3 % 7919 + 1) {
+        const std::size_t n = std::min<std::size_t>(batch, appended - done);
+        rec.append_rows(*handle, n, cycles.data() + done, stamps.data() + done, rows.data() + done * kStride + 2,
+                        kStride);
+      }
+      ASSERT_TRUE(rec.close()) << path;
+      auto back = read_recording(path);
+      ASSERT_TRUE(back) << back.error();
+      ASSERT_EQ(back->series.size(), 1U);
+      const SeriesData& s = back->series.front();
+      EXPECT_TRUE(back->warnings.empty()) << back->warnings.front();
+      ASSERT_EQ(s.rows(), appended) << "rows in " << path << " after expect_rows(40000)";
+      std::size_t mismatches = 0;
+      for (std::uint64_t r = 0; r < appended; ++r) {
+        mismatches += s.cycle[r] != cycles[r] || s.stamp_ns[r] != stamps[r] || s.captured_ns[r] != 0;
+        for (std::size_t v = 0; v < 3; ++v) mismatches += bits(s.values[r * 3 + v]) != bits(rows[r * kStride + 2 + v]);
+      }
+      EXPECT_EQ(mismatches, 0U) << path;
+      EXPECT_EQ(s.gaps, 0U);
+      EXPECT_EQ(s.out_of_order, 0U);
+    }
+  }
+}
+
+// lode replay and its io.replay blocks read one recording: the second read is the first's
+// copy while that is held, and a file rewritten in between is read again.
+TEST(Hdf5RecorderTest, SharedReadIsOneCopyUntilTheFileChanges) {
+  const std::string path = scratch_path("shared.h5");
+  auto write = [&](double value) {
+    auto recorder = Recorder::create(path, "lode run");
+    ASSERT_TRUE(recorder) << recorder.error();
+    auto handle = (*recorder)->add_series({"stage.counts", "", "raw", {"x"}, {""}, 800.0, 800.0, 1});
+    ASSERT_TRUE(handle) << handle.error();
+    for (std::uint64_t cycle = 0; cycle < 100; ++cycle) (*recorder)->append(*handle, cycle, 0, 0, &value);
+    ASSERT_TRUE((*recorder)->close());
+  };
+  write(1.0);
+  auto first = read_recording_shared(path);
+  ASSERT_TRUE(first) << first.error();
+  auto again = read_recording_shared(path);
+  ASSERT_TRUE(again) << again.error();
+  EXPECT_EQ(first->get(), again->get()) << "the second read of an unchanged file is not the held copy";
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));  // a later modification time
+  write(2.0);
+  auto rewritten = read_recording_shared(path);
+  ASSERT_TRUE(rewritten) << rewritten.error();
+  EXPECT_NE(first->get(), rewritten->get()) << "a rewritten file was not read again";
+  ASSERT_EQ((*rewritten)->series.size(), 1U);
+  EXPECT_EQ((*rewritten)->series.front().values.front(), 2.0);
+  EXPECT_FALSE(read_recording_shared(scratch_path("missing.h5"))) << "a missing file must be an error";
 }
 
 TEST(Hdf5RecorderTest, SkippedCyclesAreCountedAsGaps) {

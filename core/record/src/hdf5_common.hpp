@@ -25,6 +25,9 @@ inline constexpr int kFormatVersion = 1;
 inline constexpr hsize_t kMaxChunkRows = 4096;
 inline constexpr hsize_t kMinChunkRows = 64;
 inline constexpr hsize_t kEventChunkRows = 256;
+/// Chunk of a recording whose length is known in advance (Recorder::expect_rows): 16384 rows
+/// = 128 KiB per column, so a 30 s replay at 800 Hz is two writes per column, not thirty.
+inline constexpr hsize_t kKnownLengthChunkRows = 16384;
 inline constexpr std::array<const char*, 4> kTimeColumns = {"cycle", "stamp_ns", "captured_ns", "time_s"};
 
 // ---- HDF5 plumbing ------------------------------------------------------------------------
@@ -188,24 +191,30 @@ constexpr std::uint64_t kMissingCycle = ~std::uint64_t{0};
 constexpr std::int64_t kMissingStamp = std::numeric_limits<std::int64_t>::min();
 constexpr double kMissingValue = std::numeric_limits<double>::quiet_NaN();
 
-/// An empty 1-D dataset that grows without limit, chunked by `chunk_rows`; `fill` (of
-/// `fill_type`, in memory) is what unwritten rows read as (nullptr: HDF5's default).
+/// A 1-D dataset of `initial_rows` rows that grows without limit, chunked by `chunk_rows`;
+/// `fill` (of `fill_type`, in memory) is what unwritten rows read as (nullptr: HDF5's
+/// default). Without a chunk cache (`cache` false) a whole-chunk write goes straight to the
+/// file instead of being copied into the cache and flushed at close.
 inline Handle create_column(hid_t group, const std::string& name, hid_t file_type, hsize_t chunk_rows,
-                     hid_t fill_type = -1, const void* fill = nullptr) {
-  const hsize_t initial = 0;
+                            hid_t fill_type = -1, const void* fill = nullptr, hsize_t initial_rows = 0,
+                            bool cache = true) {
   const hsize_t unlimited = H5S_UNLIMITED;
-  Handle space(H5Screate_simple(1, &initial, &unlimited));
+  Handle space(H5Screate_simple(1, &initial_rows, &unlimited));
   Handle dcpl(H5Pcreate(H5P_DATASET_CREATE));
   H5Pset_chunk(dcpl.get(), 1, &chunk_rows);
   if (fill != nullptr) H5Pset_fill_value(dcpl.get(), fill_type, fill);
   Handle lcpl = utf8_link_properties();
-  return Handle(H5Dcreate2(group, name.c_str(), file_type, space.get(), lcpl.get(), dcpl.get(), H5P_DEFAULT));
+  Handle dapl(H5Pcreate(H5P_DATASET_ACCESS));
+  if (!cache) H5Pset_chunk_cache(dapl.get(), 0, 0, H5D_CHUNK_CACHE_W0_DEFAULT);
+  return Handle(H5Dcreate2(group, name.c_str(), file_type, space.get(), lcpl.get(), dcpl.get(), dapl.get()));
 }
 
-/// Extends `dataset` from `old_rows` by `count` rows and writes them from `data`.
-inline bool append_to_column(hid_t dataset, hsize_t old_rows, hsize_t count, hid_t memory_type, const void* data) {
+/// Writes `count` rows from `data` at row `old_rows` of `dataset`, first extending it when
+/// its `extent` is shorter (a dataset created at its final size is never extended).
+inline bool append_to_column(hid_t dataset, hsize_t old_rows, hsize_t count, hid_t memory_type, const void* data,
+                             hsize_t extent) {
   const hsize_t new_rows = old_rows + count;
-  if (H5Dset_extent(dataset, &new_rows) < 0) return false;
+  if (new_rows > extent && H5Dset_extent(dataset, &new_rows) < 0) return false;
   Handle file_space(H5Dget_space(dataset));
   if (!file_space.valid() ||
       H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, &old_rows, nullptr, &count, nullptr) < 0) {

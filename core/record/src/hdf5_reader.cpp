@@ -2,6 +2,10 @@
 // time columns, the events and the attributes; what cannot be read is said, not guessed.
 #include "lode/record/hdf5_recorder.hpp"
 
+#include <sys/stat.h>
+
+#include <mutex>
+
 #include "hdf5_common.hpp"
 
 namespace lode::record {
@@ -271,6 +275,35 @@ Expected<Recording> read_recording(const std::string& path) {
     recording.events.push_back({(*cycle)[i], (*stamp)[i], std::move((*kind)[i]), std::move((*text)[i])});
   }
   return recording;
+}
+
+}  // namespace lode::record
+
+namespace lode::record {
+
+Expected<std::shared_ptr<const Recording>> read_recording_shared(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) {
+    auto r = read_recording(path);  // says why it cannot be read
+    if (!r) return r.status();
+    return std::shared_ptr<const Recording>(std::make_shared<Recording>(std::move(*r)));
+  }
+  // The file's identity and version: a file rewritten in between is read again.
+  const std::string key = std::to_string(st.st_dev) + ":" + std::to_string(st.st_ino) + ":" +
+                          std::to_string(st.st_size) + ":" + std::to_string(st.st_mtim.tv_sec) + "." +
+                          std::to_string(st.st_mtim.tv_nsec);
+  static std::mutex mutex;
+  static std::map<std::string, std::weak_ptr<const Recording>> held;
+  std::lock_guard lock(mutex);
+  if (auto it = held.find(key); it != held.end()) {
+    if (auto shared = it->second.lock()) return shared;
+  }
+  auto r = read_recording(path);
+  if (!r) return r.status();
+  std::shared_ptr<const Recording> shared = std::make_shared<Recording>(std::move(*r));
+  std::erase_if(held, [](const auto& entry) { return entry.second.expired(); });
+  held[key] = shared;
+  return shared;
 }
 
 }  // namespace lode::record

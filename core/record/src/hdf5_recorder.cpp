@@ -28,6 +28,7 @@ struct Recorder::Impl {
     std::vector<Handle> value_columns;
     hsize_t chunk_rows = kMaxChunkRows;
     hsize_t rows_written = 0;
+    hsize_t extent = 0;  // rows every column has room for (Recorder::expect_rows)
     // Rows appended but not yet written, one vector per column.
     std::vector<std::uint64_t> cycle;
     std::vector<std::int64_t> stamp_ns, captured_ns;
@@ -46,6 +47,7 @@ struct Recorder::Impl {
   hsize_t events_written = 0;
   std::vector<Recording::Ev> pending_events;
   std::vector<std::unique_ptr<Series>> series;
+  hsize_t expected_rows = 0;  // Recorder::expect_rows; 0: unknown
   Status first_error;  // kept until the next flush()/close() returns it
   bool closed = false;
 
@@ -60,12 +62,13 @@ struct Recorder::Impl {
     s.time_s.resize(count);
     for (hsize_t row = 0; row < count; ++row) s.time_s[row] = static_cast<double>(s.stamp_ns[row]) * 1e-9;
     bool ok =
-        append_to_column(s.cycle_column.get(), s.rows_written, count, H5T_NATIVE_UINT64, s.cycle.data()) &&
-        append_to_column(s.stamp_column.get(), s.rows_written, count, H5T_NATIVE_INT64, s.stamp_ns.data()) &&
-        append_to_column(s.captured_column.get(), s.rows_written, count, H5T_NATIVE_INT64, s.captured_ns.data()) &&
-        append_to_column(s.time_column.get(), s.rows_written, count, H5T_NATIVE_DOUBLE, s.time_s.data());
+        append_to_column(s.cycle_column.get(), s.rows_written, count, H5T_NATIVE_UINT64, s.cycle.data(), s.extent) &&
+        append_to_column(s.stamp_column.get(), s.rows_written, count, H5T_NATIVE_INT64, s.stamp_ns.data(), s.extent) &&
+        append_to_column(s.captured_column.get(), s.rows_written, count, H5T_NATIVE_INT64, s.captured_ns.data(), s.extent) &&
+        append_to_column(s.time_column.get(), s.rows_written, count, H5T_NATIVE_DOUBLE, s.time_s.data(), s.extent);
     for (std::size_t v = 0; ok && v < s.value_columns.size(); ++v) {
-      ok = append_to_column(s.value_columns[v].get(), s.rows_written, count, H5T_NATIVE_DOUBLE, s.values[v].data());
+      ok = append_to_column(s.value_columns[v].get(), s.rows_written, count, H5T_NATIVE_DOUBLE, s.values[v].data(),
+                            s.extent);
     }
     if (!ok) {
       s.broken = true;
@@ -78,11 +81,25 @@ struct Recorder::Impl {
       for (const auto& column : s.value_columns) H5Dset_extent(column.get(), &s.rows_written);
     } else {
       s.rows_written += count;
+      s.extent = std::max(s.extent, s.rows_written);
     }
     s.cycle.clear();
     s.stamp_ns.clear();
     s.captured_ns.clear();
     for (auto& column : s.values) column.clear();
+  }
+
+  // A series made at its expected length that got fewer rows (a replay that faulted) ends
+  // at its last row, not at fill values.
+  void trim(Series& s) {
+    if (s.broken || s.extent <= s.rows_written) return;
+    bool ok = true;
+    for (hid_t column : {s.cycle_column.get(), s.stamp_column.get(), s.captured_column.get(), s.time_column.get()})
+      ok = H5Dset_extent(column, &s.rows_written) >= 0 && ok;
+    for (const auto& column : s.value_columns) ok = H5Dset_extent(column.get(), &s.rows_written) >= 0 && ok;
+    if (!ok) fail("cannot shorten /signals/" + s.info.name + " to its " + std::to_string(s.rows_written) + " rows: " +
+                  hdf5_message());
+    s.extent = s.rows_written;
   }
 
   void write_events() {
@@ -98,10 +115,10 @@ struct Recorder::Impl {
       texts.push_back(event.text.c_str());
     }
     Handle string_type = utf8_string_type();
-    const bool ok = append_to_column(event_cycle.get(), events_written, count, H5T_NATIVE_UINT64, cycles.data()) &&
-                    append_to_column(event_stamp.get(), events_written, count, H5T_NATIVE_INT64, stamps.data()) &&
-                    append_to_column(event_kind.get(), events_written, count, string_type.get(), kinds.data()) &&
-                    append_to_column(event_text.get(), events_written, count, string_type.get(), texts.data());
+    const bool ok = append_to_column(event_cycle.get(), events_written, count, H5T_NATIVE_UINT64, cycles.data(), events_written) &&
+                    append_to_column(event_stamp.get(), events_written, count, H5T_NATIVE_INT64, stamps.data(), events_written) &&
+                    append_to_column(event_kind.get(), events_written, count, string_type.get(), kinds.data(), events_written) &&
+                    append_to_column(event_text.get(), events_written, count, string_type.get(), texts.data(), events_written);
     if (!ok) {
       fail("cannot write " + std::to_string(count) + " rows of /events: " + hdf5_message());
       for (hid_t column : {event_cycle.get(), event_stamp.get(), event_kind.get(), event_text.get()})
@@ -237,6 +254,13 @@ Expected<int> Recorder::add_series(const SeriesInfo& info) {
   auto s = std::make_unique<Impl::Series>();
   s->info = info;
   s->chunk_rows = chunk_rows_for(info.rate_hz);
+  // Known length: the datasets are made at their final size (no H5Dset_extent per chunk) in
+  // larger chunks, written without HDF5's chunk cache (each chunk is written once, whole).
+  const bool known_length = impl_->expected_rows > 0;
+  if (known_length) {
+    s->chunk_rows = std::min(impl_->expected_rows, kKnownLengthChunkRows);
+    s->extent = impl_->expected_rows;
+  }
   Handle lcpl = utf8_link_properties();
   s->group = Handle(H5Gcreate2(signals.get(), info.name.c_str(), lcpl.get(), H5P_DEFAULT, H5P_DEFAULT));
   if (!s->group.valid()) return Status::error(where + "cannot create the group: " + hdf5_message());
@@ -257,11 +281,16 @@ Expected<int> Recorder::add_series(const SeriesInfo& info) {
       if (!status) return status;
     }
 
-    s->cycle_column = create_column(group, "cycle", H5T_STD_U64LE, s->chunk_rows, H5T_NATIVE_UINT64, &kMissingCycle);
-    s->stamp_column = create_column(group, "stamp_ns", H5T_STD_I64LE, s->chunk_rows, H5T_NATIVE_INT64, &kMissingStamp);
-    s->captured_column =
-        create_column(group, "captured_ns", H5T_STD_I64LE, s->chunk_rows, H5T_NATIVE_INT64, &kMissingStamp);
-    s->time_column = create_column(group, "time_s", H5T_IEEE_F64LE, s->chunk_rows, H5T_NATIVE_DOUBLE, &kMissingValue);
+    const hsize_t rows = s->extent;
+    const bool cache = !known_length;
+    s->cycle_column = create_column(group, "cycle", H5T_STD_U64LE, s->chunk_rows, H5T_NATIVE_UINT64, &kMissingCycle,
+                                    rows, cache);
+    s->stamp_column = create_column(group, "stamp_ns", H5T_STD_I64LE, s->chunk_rows, H5T_NATIVE_INT64, &kMissingStamp,
+                                    rows, cache);
+    s->captured_column = create_column(group, "captured_ns", H5T_STD_I64LE, s->chunk_rows, H5T_NATIVE_INT64,
+                                       &kMissingStamp, rows, cache);
+    s->time_column = create_column(group, "time_s", H5T_IEEE_F64LE, s->chunk_rows, H5T_NATIVE_DOUBLE, &kMissingValue,
+                                   rows, cache);
     if (!s->cycle_column.valid() || !s->stamp_column.valid() || !s->captured_column.valid() ||
         !s->time_column.valid()) {
       return Status::error("cannot create the time datasets: " + hdf5_message());
@@ -273,7 +302,8 @@ Expected<int> Recorder::add_series(const SeriesInfo& info) {
     }
     for (std::size_t i = 0; i < info.names.size(); ++i) {
       const std::string dataset = dataset_name_for(info.names[i], i);
-      Handle column = create_column(group, dataset, H5T_IEEE_F64LE, s->chunk_rows, H5T_NATIVE_DOUBLE, &kMissingValue);
+      Handle column = create_column(group, dataset, H5T_IEEE_F64LE, s->chunk_rows, H5T_NATIVE_DOUBLE, &kMissingValue,
+                                    rows, cache);
       if (!column.valid()) return Status::error("cannot create dataset '" + dataset + "': " + hdf5_message());
       for (Status status : {write_text_attribute(column.get(), "unit", info.units[i]),
                             write_text_attribute(column.get(), "name", info.names[i])}) {
@@ -330,6 +360,51 @@ void Recorder::append(int series, std::uint64_t cycle, std::int64_t stamp_ns, st
   }
 }
 
+void Recorder::expect_rows(std::uint64_t rows) { impl_->expected_rows = rows; }
+
+void Recorder::append_rows(int series, std::size_t count, const std::uint64_t* cycle, const std::int64_t* stamp_ns,
+                           const double* values, std::size_t stride) {
+  if (impl_->closed) return impl_->fail("append after close()");
+  if (series < 0 || static_cast<std::size_t>(series) >= impl_->series.size()) {
+    return impl_->fail("append to unknown series " + std::to_string(series));
+  }
+  Impl::Series& s = *impl_->series[static_cast<std::size_t>(series)];
+  const std::size_t width = s.values.size();
+  std::size_t done = 0;
+  while (done < count && !s.broken) {
+    // Up to the next chunk boundary, column by column (rows in, columns out).
+    const std::size_t buffered = s.cycle.size();
+    const std::size_t room = static_cast<std::size_t>(s.chunk_rows - (s.rows_written + buffered) % s.chunk_rows);
+    const std::size_t n = std::min(room, count - done);
+    for (std::size_t r = done; r < done + n; ++r) {
+      if (s.has_last_cycle) {
+        if (cycle[r] <= s.last_cycle) {
+          ++s.out_of_order;
+        } else {
+          s.gaps += (cycle[r] - s.last_cycle + s.info.decimation - 1) / s.info.decimation - 1;
+        }
+      }
+      s.last_cycle = cycle[r];
+      s.has_last_cycle = true;
+    }
+    s.samples += n;
+    s.cycle.insert(s.cycle.end(), cycle + done, cycle + done + n);
+    s.stamp_ns.insert(s.stamp_ns.end(), stamp_ns + done, stamp_ns + done + n);
+    s.captured_ns.resize(buffered + n, 0);
+    for (std::size_t v = 0; v < width; ++v) {
+      auto& column = s.values[v];
+      column.resize(buffered + n);
+      const double* from = values + done * stride + v;
+      for (std::size_t r = 0; r < n; ++r) column[buffered + r] = from[r * stride];
+    }
+    done += n;
+    if ((s.rows_written + s.cycle.size()) % s.chunk_rows == 0) {
+      silence_hdf5_errors();
+      impl_->write_rows(s);
+    }
+  }
+}
+
 void Recorder::add_event(std::uint64_t cycle, std::int64_t stamp_ns, const std::string& kind, const std::string& text) {
   if (impl_->closed) return impl_->fail("add_event('" + kind + "') after close()");
   impl_->pending_events.push_back({cycle, stamp_ns, kind, text});
@@ -356,6 +431,7 @@ Status Recorder::close() {
   silence_hdf5_errors();
   for (auto& s : impl_->series) {
     impl_->write_rows(*s);
+    impl_->trim(*s);
     impl_->write_counters(*s);
   }
   impl_->write_events();

@@ -36,11 +36,13 @@ Status ReplayBoard::configure(ConfigureContext& ctx) {
   if (!params.ok()) return Status::error("invalid parameters");
   path_ = resolve(given, params.location("recording"));
 
-  auto rec = record::read_recording(path_);
-  if (!rec) {
-    params.fail("recording", "cannot read recording '" + path_ + "': " + rec.error());
+  auto shared = record::read_recording_shared(path_);
+  if (!shared) {
+    params.fail("recording", "cannot read recording '" + path_ + "': " + shared.error());
     return Status::error("invalid parameters");
   }
+  recording_ = std::move(*shared);
+  const record::Recording* rec = recording_.get();
   warnings_ = rec->warnings;
   const std::string prefix = block_ + ".";
   std::set<std::string> recorded_blocks;
@@ -63,7 +65,7 @@ Status ReplayBoard::configure(ConfigureContext& ctx) {
   // vector must not move once they are declared.
   streams_.clear();
   streams_.reserve(count);
-  for (auto& s : rec->series) {
+  for (const auto& s : rec->series) {
     if (s.info.name.rfind(prefix, 0) != 0) continue;
     Stream st;
     st.port = s.info.name.substr(prefix.size());
@@ -71,16 +73,17 @@ Status ReplayBoard::configure(ConfigureContext& ctx) {
     st.width = s.width();
     for (std::size_t i = 0; i < s.info.names.size(); ++i)
       st.elements.push_back({s.info.names[i], i < s.info.units.size() ? s.info.units[i] : ""});
-    st.cycle = std::move(s.cycle);
-    st.values = std::move(s.values);
+    st.rows = s.rows();
+    st.cycle = s.cycle.data();
+    st.values = s.values.data();
     streams_.push_back(std::move(st));
   }
 
   // Every series must hold the same contiguous run of cycles: a replay cannot invent a
   // sample the recorder lost.
   const Stream& first = streams_.front();
-  rows_ = first.cycle.size();
-  first_cycle_ = rows_ > 0 ? first.cycle.front() : 0;
+  rows_ = first.rows;
+  first_cycle_ = rows_ > 0 ? first.cycle[0] : 0;
   bool ok = true;
   if (rows_ == 0) {
     params.fail("recording", "series '" + prefix + first.port + "' in '" + path_ + "' has no samples");
@@ -90,7 +93,7 @@ Status ReplayBoard::configure(ConfigureContext& ctx) {
     const std::string name = prefix + st.port;
     // A gap first: it is the cause when the lengths differ too.
     bool gap = false;
-    for (std::size_t k = 0; k < st.cycle.size(); ++k) {
+    for (std::size_t k = 0; k < st.rows; ++k) {
       if (st.cycle[k] != first_cycle_ + k) {
         params.fail("recording", "series '" + name + "' in '" + path_ + "' has a gap: row " + std::to_string(k) +
                                      " is cycle " + std::to_string(st.cycle[k]) + ", expected " +
@@ -100,8 +103,8 @@ Status ReplayBoard::configure(ConfigureContext& ctx) {
         break;
       }
     }
-    if (!gap && st.cycle.size() != rows_) {
-      params.fail("recording", "series '" + name + "' in '" + path_ + "' has " + std::to_string(st.cycle.size()) +
+    if (!gap && st.rows != rows_) {
+      params.fail("recording", "series '" + name + "' in '" + path_ + "' has " + std::to_string(st.rows) +
                                    " samples, '" + prefix + first.port + "' has " + std::to_string(rows_));
       ok = false;
     }
@@ -118,7 +121,7 @@ Status ReplayBoard::activate() {
 
 void ReplayBoard::copy_row(std::size_t row) noexcept {
   for (auto& st : streams_)
-    std::memcpy(st.out.data(), st.values.data() + row * st.width, st.width * sizeof(double));
+    std::memcpy(st.out.data(), st.values + row * st.width, st.width * sizeof(double));
 }
 
 StepStatus ReplayBoard::step(const Tick& tick) noexcept {

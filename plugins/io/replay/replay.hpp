@@ -9,8 +9,9 @@
 //   <port>: [the recorded elements and units of series "<block>.<port>", in recorded order]
 // @endsystem
 //
-// configure() reads the whole recording once (lode::record::read_recording) and keeps the
-// series of the chosen block; a gap in them (a dropped cycle) or series of different lengths
+// configure() reads the whole recording once (lode::record::read_recording_shared: when
+// `lode replay` has already read it, that copy is used) and plays the chosen block's series
+// from it; a gap in them (a dropped cycle) or series of different lengths
 // is a configuration error at `recording`. step() copies row tick.cycle - first_cycle of every
 // series into its output after checking the recorded cycle number: the replay is bit-exact
 // (the doubles are copied, never recomputed). Past the last row it faults "end of recording".
@@ -20,11 +21,13 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "lode/sdk/block.hpp"
 #include "lode/sdk/board.hpp"
+#include "lode/record/hdf5_recorder.hpp"
 
 namespace lode::plugins {
 
@@ -49,8 +52,9 @@ class ReplayBoard final : public Block, public Board {
     std::string kind;                 ///< recorded kind ("raw" for io outputs)
     std::size_t width = 0;
     Elements elements;                 ///< recorded names and units
-    std::vector<std::uint64_t> cycle;  ///< recorded cycle of each row
-    std::vector<double> values;        ///< rows x width, row-major, bit for bit from the file
+    std::size_t rows = 0;
+    const std::uint64_t* cycle = nullptr;  ///< recorded cycle of each row (in recording_)
+    const double* values = nullptr;        ///< rows x width, row-major, bit for bit from the file
     OutputPort out;
   };
   /// Copy row `row` into every output.
@@ -58,6 +62,7 @@ class ReplayBoard final : public Block, public Board {
 
   std::string path_;
   std::string block_;
+  std::shared_ptr<const record::Recording> recording_;  ///< what the streams point into
   std::vector<Stream> streams_;
   std::size_t rows_ = 0;
   std::uint64_t first_cycle_ = 0;

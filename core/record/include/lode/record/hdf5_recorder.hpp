@@ -75,6 +75,20 @@ class Recorder {
   /// cannot be returned here: they are kept and returned by the next flush()/close().
   void append(int series, std::uint64_t cycle, std::int64_t stamp_ns, std::int64_t captured_ns, const double* values);
 
+  /// The number of rows every series will get, when it is known before the first
+  /// add_series() (a replay runs a known number of cycles): the series added after it are
+  /// created at that length, in chunks of up to 16384 rows written without HDF5's chunk
+  /// cache, so a chunk costs one H5Dwrite per column and no H5Dset_extent. More rows still
+  /// extend the datasets; fewer are cut off at close(). Memory: up to one chunk of rows per
+  /// series is held before it is written.
+  void expect_rows(std::uint64_t rows);
+
+  /// `count` samples at once: row r is cycle[r], stamp_ns[r] and the series' values at
+  /// values + r * stride (captured_ns 0). Same bookkeeping as append() row by row, without a
+  /// call per row.
+  void append_rows(int series, std::size_t count, const std::uint64_t* cycle, const std::int64_t* stamp_ns,
+                   const double* values, std::size_t stride);
+
   /// One row of /events (start, stop, fault, parameter change, ...).
   void add_event(std::uint64_t cycle, std::int64_t stamp_ns, const std::string& kind, const std::string& text);
 
@@ -128,5 +142,11 @@ struct Recording {
 
 /// Reads a whole recording written by Recorder (also one whose writer crashed after a flush).
 Expected<Recording> read_recording(const std::string& path);
+
+/// read_recording(), read once per process while someone holds the result: a second call for
+/// the same file (same device, inode, size and modification time) returns the recording the
+/// first one read, without reading the file again. `lode replay` reads a recording and then
+/// configures io.replay blocks that play it back: they share one copy.
+Expected<std::shared_ptr<const Recording>> read_recording_shared(const std::string& path);
 
 }  // namespace lode::record
