@@ -257,7 +257,7 @@ bool check_bit_identical(const Source& source, const Job& job, ConfigResult& cr)
   const char* with = source.absolute.c_str();
   if (!cmp.first_difference.empty()) {
     std::printf("NOT bit-identical with %s: first difference in %s\n", with, cmp.first_difference.c_str());
-    for (const auto& line : largest_differences(source.recording, *replayed)) std::printf("  %s\n", line.c_str());
+    for (const auto& line : largest_differences(*source.recording, *replayed)) std::printf("  %s\n", line.c_str());
   } else if (cmp.series == 0) {
     std::printf("NOT bit-identical with %s: no series in common\n", with);
   }
