@@ -54,10 +54,7 @@ KawatoPlanarByHand::KawatoPlanarByHand(Pipeline& lender) {
     return;
   }
   noise_.seed(kSeed);
-  const double code_count = std::ldexp(1.0, kAdcBits);
-  lsb_v_ = 2.0 * kAdcRangeV / code_count;
-  count_min_ = -0.5 * code_count;
-  count_max_ = 0.5 * code_count - 1.0;
+  converter_ = plugins::sim::ConverterScale::of(kAdcBits, kAdcRangeV);
 
   // The plugin module built the instance; this program has the same class compiled in.
   if (lender.plugin_of("glsdc") == "estimator.glsdc") glsdc_ = static_cast<plugins::Glsdc*>(lender.block("glsdc"));
@@ -116,8 +113,8 @@ bool KawatoPlanarByHand::cycle(std::uint64_t cycle) noexcept {
     const double volts = clean_[c] + kNoiseStdV * noise_();
     if (!std::isfinite(volts)) return false;
     bool clipped = false;
-    counts_[c] = plugins::sim::adc_code(volts, lsb_v_, count_min_, count_max_, clipped);
-    signals_[c] = counts_[c] * lsb_v_;
+    counts_[c] = converter_.code(volts, clipped);
+    signals_[c] = counts_[c] * converter_.lsb_v;
   }
 
   // glsdc: one Gauss-Newton step on the four channels.

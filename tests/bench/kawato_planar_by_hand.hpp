@@ -61,7 +61,7 @@ class KawatoPlanarByHand {
   plugins::PlanarStage plant_;
   plugins::HalbachHall field_;
   plugins::sim::GaussianNoise noise_;
-  double lsb_v_ = 0.0, count_min_ = 0.0, count_max_ = 0.0;
+  plugins::sim::ConverterScale converter_;
   std::array<double, 3> truth_{};
   std::array<double, plugins::PlanarStage::kStateSize> plant_state_{};
   std::array<double, kChannels> counts_{};

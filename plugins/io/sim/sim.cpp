@@ -58,11 +58,7 @@ Status SimBoard::configure(ConfigureContext& ctx) {
   params.check(adc_range_v_ > 0.0, "adc_range_v",
                "must be > 0 V (the converter spans +-adc_range_v), got " + number_text(adc_range_v_));
   if (adc_bits_ > 0 && adc_range_v_ > 0.0) {
-    // Bipolar converter, two's-complement codes -2^(b-1) ... 2^(b-1)-1 over +-range.
-    const double code_count = std::ldexp(1.0, static_cast<int>(adc_bits_));
-    lsb_v_ = 2.0 * adc_range_v_ / code_count;
-    count_min_ = -0.5 * code_count;
-    count_max_ = 0.5 * code_count - 1.0;
+    converter_ = sim::ConverterScale::of(static_cast<int>(adc_bits_), adc_range_v_);
   }
   mains_amplitude_v_ = params.number("mains_amplitude_v", 0.0);
   params.check(mains_amplitude_v_ >= 0.0, "mains_amplitude_v",
@@ -123,9 +119,10 @@ Status SimBoard::configure(ConfigureContext& ctx) {
     // `signals` and `counts` agree.
     stuck_count_ = value_v;
     stuck_signal_v_ = value_v;
-    if (lsb_v_ > 0.0 && std::isfinite(value_v)) {
-      stuck_count_ = std::clamp(std::floor(value_v / lsb_v_ + 0.5), count_min_, count_max_);
-      stuck_signal_v_ = stuck_count_ * lsb_v_;
+    if (converter_.quantizes() && std::isfinite(value_v)) {
+      bool clipped = false;
+      stuck_count_ = converter_.code(value_v, clipped);
+      stuck_signal_v_ = stuck_count_ * converter_.lsb_v;
     }
     parse_injection_window(*stuck, sensors_status.is_ok(), stuck_window_);
   }
@@ -326,12 +323,12 @@ StepStatus SimBoard::sample(std::int64_t time_ns, bool in_cycle) noexcept {
     double volts = clean_signals_[c] + channel_offset_v_[c] + mains_v;
     if (with_noise && noise_std_v_ > 0.0) volts += noise_std_v_ * noise_();
     if (!std::isfinite(volts)) return fault("non-finite simulated signal");
-    if (lsb_v_ > 0.0) {
+    if (converter_.quantizes()) {
       bool clipped = false;
-      const double code = sim::adc_code(volts, lsb_v_, count_min_, count_max_, clipped);
+      const double code = converter_.code(volts, clipped);
       if (clipped) ++saturated;
       counts_[c] = code;
-      signals_[c] = code * lsb_v_;
+      signals_[c] = code * converter_.lsb_v;
     } else {
       // No converter modelled: counts carry the volts unchanged (an LSB of 1 V).
       counts_[c] = volts;
@@ -436,11 +433,11 @@ void SimBoard::describe(Json& out) const {
 
   out["adc_bits"] = static_cast<double>(adc_bits_);
   out["adc_range_v"] = adc_range_v_;
-  const double quantization_std_v = lsb_v_ / std::sqrt(12.0);
+  const double quantization_std_v = converter_.lsb_v / std::sqrt(12.0);
   const double mains_rms_v = mains_amplitude_v_ / std::numbers::sqrt2;
-  out["lsb_v"] = lsb_v_;
-  out["count_min"] = count_min_;
-  out["count_max"] = count_max_;
+  out["lsb_v"] = converter_.lsb_v;
+  out["count_min"] = converter_.count_min;
+  out["count_max"] = converter_.count_max;
   out["quantization_noise_std_v"] = quantization_std_v;
   out["white_noise_std_v"] = noise_std_v_;
   out["mains_rms_v"] = mains_rms_v;

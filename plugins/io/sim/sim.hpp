@@ -121,9 +121,7 @@ class SimBoard final : public Block, public Tunables, public Board {
   double noise_std_v_ = 1e-3;
   std::int64_t adc_bits_ = 16;
   double adc_range_v_ = 10.0;
-  double lsb_v_ = 0.0;   ///< 2 range / 2^bits; 0 without quantization
-  double count_min_ = 0.0;
-  double count_max_ = 0.0;
+  sim::ConverterScale converter_;  ///< lsb_v 0 without quantization (adc_bits 0)
   double mains_amplitude_v_ = 0.0;
   double mains_frequency_hz_ = 60.0;
   double mains_phase_rad_ = 0.0;

@@ -43,19 +43,31 @@ class GaussianNoise {
   double spare_ = 0.0;
 };
 
-/// Mid-tread quantizer of a bipolar converter, then its code range: the code of `volts`
-/// (LSB `lsb_v`), clipped to [count_min, count_max]; `saturated` tells whether it was clipped.
-inline double adc_code(double volts, double lsb_v, double count_min, double count_max, bool& saturated) noexcept {
-  double code = std::floor(volts / lsb_v + 0.5);
-  saturated = false;
-  if (code > count_max) {
-    code = count_max;
-    saturated = true;
-  } else if (code < count_min) {
-    code = count_min;
-    saturated = true;
+/// A bipolar converter: two's-complement codes -2^(b-1) ... 2^(b-1)-1 over +-range_v, read
+/// by a mid-tread quantizer. Default-constructed (lsb_v 0) it models no converter.
+struct ConverterScale {
+  double lsb_v = 0.0;  ///< 2 range / 2^bits
+  double count_min = 0.0;
+  double count_max = 0.0;
+
+  static ConverterScale of(int bits, double range_v) noexcept {
+    const double code_count = std::ldexp(1.0, bits);
+    return {2.0 * range_v / code_count, -0.5 * code_count, 0.5 * code_count - 1.0};
   }
-  return code;
-}
+  [[nodiscard]] bool quantizes() const noexcept { return lsb_v > 0.0; }
+  /// The code of `volts`, clipped to [count_min, count_max]; `saturated` tells whether it was.
+  double code(double volts, bool& saturated) const noexcept {
+    double c = std::floor(volts / lsb_v + 0.5);
+    saturated = false;
+    if (c > count_max) {
+      c = count_max;
+      saturated = true;
+    } else if (c < count_min) {
+      c = count_min;
+      saturated = true;
+    }
+    return c;
+  }
+};
 
 }  // namespace lode::plugins::sim
