@@ -58,8 +58,10 @@ void PublishDoorbell::ring() noexcept {
   // Sequentially consistent on both sides (Dekker): either the waiter sees the new sequence
   // before it sleeps, or this sees its `sleeping_` and wakes it; FUTEX_WAIT re-checks the
   // word in the kernel, so a ring between its check and its sleep is not lost either.
+  // Only the waiter clears `sleeping_`: a ring that cleared it could clear the flag of the
+  // waiter's next wait(), whose sleep no later ring would then end.
   sequence_.fetch_add(1, std::memory_order_seq_cst);
-  if (sleeping_.load(std::memory_order_seq_cst) != 0 && sleeping_.exchange(0, std::memory_order_seq_cst) != 0) {
+  if (sleeping_.load(std::memory_order_seq_cst) != 0) {
     futex(sequence_, FUTEX_WAKE_PRIVATE, 1, nullptr);
     wakes_.store(wakes_.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
   }
