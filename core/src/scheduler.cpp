@@ -30,11 +30,7 @@ void RealClock::sleep_until(std::int64_t deadline_ns) noexcept {
     while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
     }
   }
-  while (spin_ns_ > 0 && now_ns() < deadline_ns) {
-#if defined(__x86_64__) || defined(__i386__)
-    __builtin_ia32_pause();  // spin politely (the sibling hyperthread keeps its share)
-#endif
-  }
+  while (spin_ns_ > 0 && now_ns() < deadline_ns) cpu_relax();
 }
 
 // --------------------------------------------------------------------------------------

@@ -19,6 +19,7 @@
 // callback runs on "lode-telemetry" inside write(). A slow in-process callback therefore
 // stalls publishing (the rings fill and count drops; the RT thread is never affected).
 #include "bridge_impl.hpp"
+#include "lode/realtime.hpp"
 
 namespace lode::dds {
 namespace bridge_detail {

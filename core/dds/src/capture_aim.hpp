@@ -46,15 +46,6 @@ class QuantileTracker {
   bool known_ = false;
 };
 
-/// One iteration of a polling loop: tells the core (and a hypervisor) that this is a spin.
-inline void cpu_relax() {
-#if defined(__x86_64__) || defined(__i386__)
-  __builtin_ia32_pause();
-#elif defined(__aarch64__)
-  asm volatile("yield");
-#endif
-}
-
 class CaptureAim {
  public:
   /// Nanoseconds between two cycles that publish something.

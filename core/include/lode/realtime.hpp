@@ -12,6 +12,16 @@
 
 namespace lode {
 
+/// One iteration of a polling loop: tells the core (and a hypervisor) that this is a spin, so a
+/// sibling hyperthread keeps its share.
+inline void cpu_relax() noexcept {
+#if defined(__x86_64__) || defined(__i386__)
+  __builtin_ia32_pause();
+#elif defined(__aarch64__)
+  asm volatile("yield");
+#endif
+}
+
 /// Process-wide part: mlockall(MCL_CURRENT|MCL_FUTURE) and /dev/cpu_dma_latency = 0.
 /// Returns warnings. Call before starting the RT thread.
 std::vector<std::string> apply_process_realtime(const RealtimeSettings& settings);
