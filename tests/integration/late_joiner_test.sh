@@ -6,7 +6,7 @@
 # HEARTBEAT period; tests/bench/late_joiner.sh measures the figure (300 ms).
 # Before the tries, deterministically: the pipeline's shared-memory ports (and the first
 # echo's) make a newcomer that opens one while its health check fails sleep at most 50 ms
-# before the next check (Fast DDS's default made it 333 ms, one late joiner in ten).
+# before the next check (Fast DDS's default made it 333 ms, for 2 or 3 late joiners in 20).
 # usage: late_joiner_test.sh LODE SRC [TRIES]
 set -u
 LODE=$1 SRC=$2 TRIES=${3:-6}

@@ -55,8 +55,8 @@ constexpr std::uint32_t kSharedMemorySegmentBytes = 8u << 20;
 // port, and from then until the listener's next wake-up a newcomer's check fails and sleeps
 // that third before it tries again. The newcomer opens a port at its first message to it,
 // on the participant's event thread with the reader's lock held: with Fast DDS's 1000 ms,
-// one `lode echo` in ten started beside a pipeline sent its first ACKNACK to the pipeline
-// 333 ms late and had its first sample after 440 to 500 ms instead of ~150 ms. 150 ms bounds
+// 2 or 3 in 20 `lode echo` started beside a pipeline sent their first ACKNACK to it
+// 333 ms late and had their first sample after 440 to 530 ms instead of ~150 ms. 150 ms bounds
 // that sleep to 50 ms, and makes it rarer (the wait after a verification is shorter), for
 // 20 idle wake-ups a second per port. A listener that does not run for the whole 150 ms
 // after a verification fails the check: the opener then recreates the port, and the owner
