@@ -49,6 +49,19 @@ constexpr std::int32_t kAnnouncementPeriodS = 1;
 // that; the segment is touched only as far as it is used.
 constexpr std::uint32_t kSharedMemoryPortQueue = 8192;
 constexpr std::uint32_t kSharedMemorySegmentBytes = 8u << 20;
+// How long a process that opens another's shared-memory port may take to find its listener
+// alive. Fast DDS 2.9 stores it in the port when the port is created, and its listener wakes
+// every third of it to show it is alive; every second some process's watchdog verifies the
+// port, and from then until the listener's next wake-up a newcomer's check fails and sleeps
+// that third before it tries again. The newcomer opens a port at its first message to it,
+// on the participant's event thread with the reader's lock held: with Fast DDS's 1000 ms,
+// 2 or 3 in 20 `lode echo` started beside a pipeline sent their first ACKNACK to it
+// 333 ms late and had their first sample after 440 to 530 ms instead of ~150 ms. 150 ms bounds
+// that sleep to 50 ms, and makes it rarer (the wait after a verification is shorter), for
+// 20 idle wake-ups a second per port. A listener that does not run for the whole 150 ms
+// after a verification fails the check: the opener then recreates the port, and the owner
+// takes it up again at its next wake-up (messages sent to the old one in between are lost).
+constexpr std::uint32_t kSharedMemoryHealthCheckMs = 150;
 // UDP on this host carries a pipeline's samples too (a `lode record` process received them
 // as datagrams, ~5600 a second for kawato_planar): with the kernel's default receive buffer
 // (208 KiB, a few hundred datagrams) a reader that did not run for a few tens of
@@ -148,6 +161,7 @@ Status configure_participant_qos(const ParticipantOptions& options, fdds::Domain
     auto shm = std::make_shared<eprosima::fastdds::rtps::SharedMemTransportDescriptor>();
     shm->segment_size(kSharedMemorySegmentBytes);
     shm->port_queue_capacity(kSharedMemoryPortQueue);
+    shm->healthy_check_timeout_ms(kSharedMemoryHealthCheckMs);
     transport.user_transports.push_back(shm);
   };
 

@@ -1,0 +1,44 @@
+"""Prints the health-check settings that Fast DDS 2.9 stored in the shared-memory ports of one
+DDS domain, one line per port: "PORT HEALTH_CHECK_MS WAKE_MS".
+
+A port is the file /dev/shm/fastrtps_port<N>; its creator writes, among other fields,
+the port number, the number of listeners, the health-check timeout and the period at which
+an idle listener wakes to show it is alive (a third of the timeout), then the queue
+capacity, as consecutive 32-bit words. A process that opens the port while its check fails
+sleeps that period before it tries again. The words are found by their pattern, not by an
+offset, so padding before them does not matter.
+
+usage: shm_port_settings.py DOMAIN
+"""
+import glob
+import os
+import struct
+import sys
+
+
+def settings(path, port):
+    with open(path, "rb") as f:
+        data = f.read()
+    key = struct.pack("<I", port)
+    at = data.find(key)
+    while at != -1:
+        if at % 4 == 0 and at + 20 <= len(data):
+            _, listeners, health_ms, wake_ms, capacity = struct.unpack_from("<5I", data, at)
+            if listeners < 1024 and 0 < health_ms and wake_ms == health_ms // 3 and capacity > 0:
+                return health_ms, wake_ms
+        at = data.find(key, at + 1)
+    return None
+
+
+def main():
+    domain = int(sys.argv[1])
+    first, last = 7400 + 250 * domain, 7400 + 250 * (domain + 1)
+    for path in sorted(glob.glob("/dev/shm/fastrtps_port*")):
+        name = os.path.basename(path)[len("fastrtps_port"):]
+        if not name.isdigit() or not first <= int(name) < last:
+            continue
+        found = settings(path, int(name))
+        print(name, *(found if found else ("unknown", "unknown")))
+
+
+main()
