@@ -269,6 +269,12 @@ Json RunServices::summary() const {
     t["transport"] = to_string(im.spec.transport.kind);
     t["samples_offered"] = im.telemetry_tap->offered();
     t["ring_dropped"] = im.telemetry_tap->dropped();
+    // What waking the publisher cost the RT thread: rings, the ones that had to make a system
+    // call, and the time those calls took.
+    const PublishDoorbell& doorbell = im.telemetry_tap->doorbell();
+    t["doorbell_rings"] = static_cast<std::uint64_t>(doorbell.sequence());
+    t["doorbell_wakes"] = doorbell.wakes();
+    t["doorbell_wake_ns"] = doorbell.wake_ns();
     t["simulation_held"] = im.sim_waits;
     {
       const auto b = im.bridge ? im.bridge->stats() : last_bridge_stats_;

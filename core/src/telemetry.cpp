@@ -62,8 +62,12 @@ void PublishDoorbell::ring() noexcept {
   // waiter's next wait(), whose sleep no later ring would then end.
   sequence_.fetch_add(1, std::memory_order_seq_cst);
   if (sleeping_.load(std::memory_order_seq_cst) != 0) {
+    const std::int64_t start = monotonic_ns();
     futex(sequence_, FUTEX_WAKE_PRIVATE, 1, nullptr);
+    const std::int64_t spent = monotonic_ns() - start;
     wakes_.store(wakes_.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+    wake_ns_.store(wake_ns_.load(std::memory_order_relaxed) + static_cast<std::uint64_t>(std::max<std::int64_t>(spent, 0)),
+                   std::memory_order_relaxed);
   }
 }
 

@@ -56,6 +56,10 @@ TEST(PublishDoorbell, ARingWakesASleepingWaiterLongBeforeItsTimeout) {
                                 "is 60 s)";
   EXPECT_TRUE(woken) << "wait() reported a timeout, but it was rung";
   EXPECT_NE(doorbell.sequence(), first_seen);
+  // What the wake-ups cost the ringer is measured: a system call takes far more than 0 ns
+  // and, on any host, less than the 5 s this test may take.
+  EXPECT_GT(doorbell.wake_ns(), 0u) << doorbell.wakes() << " wake-ups, none of them timed";
+  EXPECT_LT(doorbell.wake_ns(), 5'000'000'000u);
 }
 
 TEST(PublishDoorbell, AnAwakeConsumerCostsTheRingerNoSystemCall) {
@@ -63,6 +67,7 @@ TEST(PublishDoorbell, AnAwakeConsumerCostsTheRingerNoSystemCall) {
   for (int i = 0; i < 1000; ++i) doorbell.ring();
   EXPECT_EQ(doorbell.sequence(), 1000u);
   EXPECT_EQ(doorbell.wakes(), 0u) << "nobody waited, yet ring() made system calls";
+  EXPECT_EQ(doorbell.wake_ns(), 0u) << "no system call, yet time was counted for one";
   EXPECT_TRUE(doorbell.wait(0, 10s)) << "the sequence moved on: wait() must return at once";
 }
 

@@ -197,6 +197,18 @@ print(f"  real clock 5 kHz, 8 s: overruns {a['overruns']} without / {b['overruns
 bound = max(3 * a['overruns'], 0.01 * b['executed_cycles'])
 assert b['overruns'] <= bound, f"overruns {b['overruns']} > bound {bound}"
 PY
+  # What waking the publisher cost the RT thread, as the run measured it: the rings that found
+  # it asleep and the time their system calls took (the summary's telemetry doorbell line).
+  $PY - "$TMP/rb.json" <<'PY' && ok "the doorbell's cost is reported" || bad "the doorbell's cost is missing or inconsistent"
+import json, sys
+s = json.load(open(sys.argv[1])); t = s['telemetry']; executed = s['timing']['executed_cycles']
+rings, wakes, wake_ns = t['doorbell_rings'], t['doorbell_wakes'], t['doorbell_wake_ns']
+print(f"  real clock 5 kHz, 8 s: the RT thread rang {rings} times in {executed} cycles, {wakes} with a system call "
+      f"({wake_ns / max(wakes, 1):.0f} ns each), {wake_ns / max(rings, 1):.1f} ns a ring on average")
+assert 0 < rings <= executed, "one ring per cycle that handed samples over"
+assert wakes <= rings
+assert (wakes == 0) == (wake_ns == 0), "system calls made but their time not counted (or the reverse)"
+PY
   ;;
 *) echo "unknown part $PART"; exit 2 ;;
 esac

@@ -10,8 +10,9 @@
 // capture's delay, less how late its own timer usually fires) and then polls the doorbell
 // for at most `spin_budget()`: 1/20 of the publishing period, at most 50 us (5 % of a CPU
 // at 1 kHz). If the capture has not come by then, it sleeps until the latest usual capture
-// (the 98th percentile) and only then waits on the doorbell: a capture
-// later than that finds it asleep there, and the ring makes the system call.
+// (the 98th percentile), then looks again every `spin_budget()` until the next cycle is due,
+// and only then waits on the doorbell: only a capture later than a whole period (a loop that
+// skipped a period or stopped) finds it asleep there, and the ring makes the system call.
 #pragma once
 
 #include <algorithm>
@@ -68,6 +69,8 @@ class CaptureAim {
   struct Aim {
     std::chrono::steady_clock::time_point wake;  ///< be awake and polling from then
     std::chrono::steady_clock::time_point late;  ///< the latest usual capture (98th percentile)
+    /// The earliest usual capture of the cycle after: past it, the loop skipped a period or stopped.
+    std::chrono::steady_clock::time_point next_cycle;
   };
   /// When to be awake for the next records; nullopt until a capture was seen.
   [[nodiscard]] std::optional<Aim> next() const {
@@ -77,7 +80,8 @@ class CaptureAim {
     const std::int64_t late = scheduled + std::max(early_.value_ns(), late_.value_ns());
     // steady_clock is CLOCK_MONOTONIC, the clock of captured_ns.
     using tp = std::chrono::steady_clock::time_point;
-    return Aim{tp(std::chrono::nanoseconds(wake)), tp(std::chrono::nanoseconds(late))};
+    return Aim{tp(std::chrono::nanoseconds(wake)), tp(std::chrono::nanoseconds(late)),
+               tp(std::chrono::nanoseconds(scheduled + step_ns_ + early_.value_ns()))};
   }
 
  private:

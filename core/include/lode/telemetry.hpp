@@ -144,12 +144,16 @@ class PublishDoorbell {
   [[nodiscard]] std::uint32_t sequence() const noexcept { return sequence_.load(std::memory_order_acquire); }
   /// Rings that found the waiter asleep and made a system call to wake it.
   [[nodiscard]] std::uint64_t wakes() const noexcept { return wakes_.load(std::memory_order_relaxed); }
+  /// Nanoseconds the RT thread spent in those system calls, in all (CLOCK_MONOTONIC read
+  /// around each call: only rings that make one pay for the two reads).
+  [[nodiscard]] std::uint64_t wake_ns() const noexcept { return wake_ns_.load(std::memory_order_relaxed); }
 
  private:
   // One cache line: the RT thread touches both in ring(), and the waiter both in wait().
   alignas(64) std::atomic<std::uint32_t> sequence_{0};
   std::atomic<std::uint32_t> sleeping_{0};
-  std::atomic<std::uint64_t> wakes_{0};  ///< written by ring() only
+  std::atomic<std::uint64_t> wakes_{0};    ///< written by ring() only
+  std::atomic<std::uint64_t> wake_ns_{0};  ///< written by ring() only
 };
 
 /// RT side of the telemetry: one ring per published signal (and one for the state).
@@ -164,6 +168,7 @@ class TelemetryTap final : public CycleHook {
   /// publisher is behind then and should run).
   void cycle_finished() noexcept override;
   [[nodiscard]] PublishDoorbell& doorbell() noexcept { return doorbell_; }
+  [[nodiscard]] const PublishDoorbell& doorbell() const noexcept { return doorbell_; }
 
   struct Channel {
     const double* data = nullptr;
