@@ -16,6 +16,7 @@ void Envelope::add(Limit limit) {
 }
 
 void Envelope::flatten() {
+  symmetric_bounds_.clear();
   bounds_.clear();
   rates_.clear();
   for (std::size_t l = 0; l < limits_.size(); ++l) {
@@ -26,11 +27,14 @@ void Envelope::flatten() {
     const double widest = limit.max_invalid_ns >= 0 ? std::numeric_limits<double>::max()
                                                     : std::numeric_limits<double>::infinity();
     for (std::size_t i = 0; i < state.previous.size(); ++i) {
-      bounds_.push_back({limit.data + i, std::max(limit.min[i], -widest), std::min(limit.max[i], widest)});
+      const double min = std::max(limit.min[i], -widest), max = std::min(limit.max[i], widest);
+      if (min == -max) symmetric_bounds_.push_back({limit.data + i, max});
+      else bounds_.push_back({limit.data + i, min, max});
       if (limit.max_rate[i] < std::numeric_limits<double>::infinity())
-        rates_.push_back({limit.data + i, &state.previous[i], &state.have_previous, limit.max_rate[i]});
+        rates_.push_back({limit.data + i, &state.previous[i], limit.max_rate[i]});
     }
   }
+  states_settled_ = false;
 }
 
 void Envelope::reset() noexcept {
@@ -38,6 +42,7 @@ void Envelope::reset() noexcept {
     s.have_previous = false;
     s.invalid_since_ns = -1;
   }
+  states_settled_ = false;
   violated_ = false;
 }
 
@@ -51,31 +56,33 @@ bool Envelope::breach(std::size_t limit, std::size_t element, Breach what, doubl
 }
 
 bool Envelope::check(const Tick& tick) noexcept {
-  bool inside = true;
+  for (const SymmetricBound& b : symmetric_bounds_)
+    if (!(std::abs(*b.value) <= b.max)) return check_each(tick);
   for (const Bound& b : bounds_) {
     const double v = *b.value;
-    inside &= (v >= b.min) & (v <= b.max);
+    if (!((v >= b.min) & (v <= b.max))) return check_each(tick);
   }
-  // Inside its bounds a value is not NaN; an unbounded one may be infinite, which has no rate
-  // here (as in check_limit).
-  for (const RateBound& r : rates_) {
-    const double v = *r.value, previous = *r.previous;
-    if (*r.have_previous && std::isfinite(previous) && std::isfinite(v))
-      inside &= !(std::abs(v - previous) / tick.dt_s > r.max_rate);
-  }
-  // Anything not plainly inside: the reference decides and names the first breach.
-  if (!inside) return check_each(tick);
+  // Every value is inside its bounds. A rate within its limit here is within it in
+  // check_limit, which computes it the same way where it checks one (a previous value, both
+  // finite); anything else (no previous value yet, a non-finite one: a NaN or infinite rate)
+  // is not plainly inside, and check_each() decides.
+  for (const RateBound& r : rates_)
+    if (!(std::abs(*r.value - *r.previous) / tick.dt_s <= r.max_rate)) return check_each(tick);
   // What check_limit leaves behind when every value is inside, and finite where invalid values
   // have a budget (previous values are read only where a rate is limited).
   for (const RateBound& r : rates_) *r.previous = *r.value;
-  for (State& state : states_) {
-    state.have_previous = true;
-    state.invalid_since_ns = -1;
+  if (!states_settled_) {
+    for (State& state : states_) {
+      state.have_previous = true;
+      state.invalid_since_ns = -1;
+    }
+    states_settled_ = true;
   }
   return true;
 }
 
 bool Envelope::check_each(const Tick& tick) noexcept {
+  states_settled_ = false;
   for (std::size_t l = 0; l < limits_.size(); ++l)
     if (!check_limit(l, tick)) return false;
   return true;

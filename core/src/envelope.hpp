@@ -75,8 +75,14 @@ class Envelope {
   void flatten();
 
   // The fast path: the envelope is checked every cycle, and nearly every cycle every value is
-  // inside. Every limited element becomes a flat (value, min, max) entry tested without a
-  // branch (a NaN fails both comparisons), the rate-limited ones a short list of their own.
+  // inside. Every limited element becomes a flat entry: (value, max) where its bounds are
+  // symmetric (max_abs, and the unbounded: |v| <= max is exactly -max <= v <= max, and false
+  // for a NaN), (value, min, max) otherwise; the rate-limited ones a short list of their own.
+  // The first entry not plainly inside hands the cycle to check_each().
+  struct SymmetricBound {
+    const double* value;
+    double max;
+  };
   struct Bound {
     const double* value;
     double min, max;
@@ -84,11 +90,14 @@ class Envelope {
   struct RateBound {
     const double* value;
     double* previous;
-    const bool* have_previous;
     double max_rate;
   };
+  std::vector<SymmetricBound> symmetric_bounds_;
   std::vector<Bound> bounds_;
   std::vector<RateBound> rates_;
+  /// Every state holds what a fully inside check leaves (have_previous, not invalid): the
+  /// fast path need not write them again. Cleared by reset() and by check_each().
+  bool states_settled_ = false;
 
   std::vector<Limit> limits_;
   std::vector<State> states_;

@@ -157,8 +157,7 @@ void HotSwap::after_cycle(const Tick& tick) noexcept {
     p.record->estimator->import_state(p.dst_values.data(), p.dst_has_cov ? p.dst_cov.data() : nullptr, p.present.data());
   }
   if (p.shadow_cycles > 0) {
-    f.warming = p.record->block.get();
-    f.warming_left = p.shadow_cycles;
+    roles_.set_warming(f, p.record->block.get(), p.shadow_cycles);
     p.cost_ns += monotonic_ns() - t0;
     state_.store(kWarming, std::memory_order_release);
     return;
@@ -169,7 +168,7 @@ void HotSwap::after_cycle(const Tick& tick) noexcept {
 void HotSwap::install(Prepared& p, const Tick& boundary, std::int64_t t0) noexcept {
   Family& f = *p.family;
   p.retired = roles_.install(f, p.role, *p.record);
-  f.warming = nullptr;
+  roles_.set_warming(f, nullptr, f.warming_left);
   if (p.role == 0) {
     f.restart_health();
   }

@@ -169,13 +169,20 @@ namespace {
   return s;
 }
 
-/// Whether the op's step needs run_watched (read every cycle: a hot swap may add shadows or a
-/// warming candidate while the pipeline runs).
-bool watched(const Pipeline::Impl& impl, const Pipeline::Op& op, bool time_ops) noexcept {
-  if (time_ops) return true;
-  if (op.family < 0) return false;
-  const pipeline_detail::Family& f = impl.families[static_cast<std::size_t>(op.family)];
-  return f.health.step_budget_ns > 0 || f.health.enabled || !f.shadows.empty() || f.warming;
+/// Ops [begin, end) of the cycle; the index of the first that did not return ok (its status in
+/// `s`), or `end`. kBare: nothing is timed and no family is watched, each op is just its call.
+template <bool kBare>
+std::size_t run_ops(Pipeline::Impl& impl, Pipeline::Op* ops, std::size_t begin, std::size_t end, const Tick& tick,
+                    bool time_ops, StepStatus& s, const char*& reason) noexcept {
+  for (std::size_t i = begin; i < end; ++i) {
+    Pipeline::Op& op = ops[i];
+    if (!kBare && (time_ops || (op.family >= 0 && impl.families[static_cast<std::size_t>(op.family)].watched())))
+      s = run_watched(impl, op, tick, time_ops, reason);
+    else
+      s = op.write_phase ? op.board->write(tick) : op.block->step(tick);
+    if (s != StepStatus::ok) return i;
+  }
+  return end;
 }
 }  // namespace
 
@@ -185,26 +192,28 @@ Pipeline::CycleResult Pipeline::run_cycle(const Tick& tick, bool time_ops) noexc
   Impl& impl = *impl_;
   Op* const ops = impl.ops.data();
   const std::size_t n = impl.ops.size();
-  // The envelope is checked before op envelope_at (n: after the last op); without one, never.
-  const std::size_t envelope_at = impl.envelope.empty() ? n + 1 : impl.envelope_at;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (i == envelope_at && !impl.envelope.check(tick)) {
-      drive_safe();
-      return {StepStatus::fault, static_cast<int>(i), nullptr, true};
-    }
-    Op& op = ops[i];
-    const char* reason = nullptr;
-    StepStatus s;
-    if (watched(impl, op, time_ops)) s = run_watched(impl, op, tick, time_ops, reason);
-    else s = op.write_phase ? op.board->write(tick) : op.block->step(tick);
-    if (s != StepStatus::ok) {
-      drive_safe();
-      return {s, static_cast<int>(i), reason};
-    }
-  }
-  if (envelope_at == n && !impl.envelope.check(tick)) {
+  const bool has_envelope = !impl.envelope.empty();
+  // The envelope is checked before op envelope_at (n: after the last op).
+  const std::size_t envelope_at = has_envelope ? std::min(impl.envelope_at, n) : n;
+  // One flag, read once per cycle: whether any family is watched (a hot swap's warming
+  // candidate sets it between cycles, on this thread).
+  const bool bare = !time_ops && !impl.watched;
+  const auto run = [&](std::size_t begin, std::size_t end, StepStatus& s, const char*& reason) {
+    return bare ? run_ops<true>(impl, ops, begin, end, tick, time_ops, s, reason)
+                : run_ops<false>(impl, ops, begin, end, tick, time_ops, s, reason);
+  };
+  StepStatus s = StepStatus::ok;
+  const char* reason = nullptr;
+  std::size_t failed = run(0, envelope_at, s, reason);
+  if (failed == envelope_at && has_envelope && !impl.envelope.check(tick)) {
     drive_safe();
-    return {StepStatus::fault, static_cast<int>(n) - 1, nullptr, true};
+    return {StepStatus::fault, envelope_at < n ? static_cast<int>(envelope_at) : static_cast<int>(n) - 1, nullptr,
+            true};
+  }
+  if (failed == envelope_at) failed = run(envelope_at, n, s, reason);
+  if (failed < n) {
+    drive_safe();
+    return {s, static_cast<int>(failed), reason};
   }
   return {};
 }

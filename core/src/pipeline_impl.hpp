@@ -45,6 +45,16 @@ struct Pipeline::Impl {
   /// The op before which the envelope is checked: the first write phase (so an out-of-bounds
   /// command never reaches a board), or ops.size() to check after the last op.
   std::size_t envelope_at = 0;
+  /// Some family is watched (Family::watched()): run_cycle takes the path that looks at each
+  /// op's family. Kept by refresh_watched() wherever what it depends on changes (the load, a
+  /// warming candidate of a hot swap, on the RT thread), so the common cycle reads one flag.
+  bool watched = false;
+  /// RT-safe (no allocation): recompute `watched` from the families.
+  void refresh_watched() noexcept {
+    bool any = false;
+    for (const Family& f : families) any = any || f.watched();
+    watched = any;
+  }
   std::vector<std::unique_ptr<BlockEntry>> pool;  // hot-swap instances now running in a role
   std::deque<OutputPort> synthetic_ports;          // shadow statistics outputs
 

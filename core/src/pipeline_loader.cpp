@@ -98,6 +98,7 @@ std::unique_ptr<Pipeline> Pipeline::load_text(const std::string& yaml, const std
   im.parse_monitor(root["monitor"]);
   im.parse_telemetry(root["telemetry"]);
   im.parse_health(root["health"]);
+  im.refresh_watched();
   im.parse_envelope(root["envelope"]);
   if (!diagnostics.empty()) return nullptr;
   return p;

@@ -185,6 +185,12 @@ struct Family {
     nis_pos = 0;
     over_budget = 0;
   }
+
+  /// Whether the primary's step needs more than the call: a health monitor, a step budget
+  /// (timed), shadows, or a hot-swap candidate warming beside it.
+  [[nodiscard]] bool watched() const noexcept {
+    return health.enabled || health.step_budget_ns > 0 || !shadows.empty() || warming != nullptr;
+  }
 };
 
 /// Keys of a block that the pipeline reads (the rest are the plugin's parameters).

@@ -303,6 +303,12 @@ BlockEntry* Roles::install(Family& family, int role, BlockEntry& record) noexcep
 
 void Roles::exchange(Family& family, int role_a, int role_b) noexcept { pipeline_.exchange_roles(family, role_a, role_b); }
 
+void Roles::set_warming(Family& family, Block* candidate, std::uint32_t cycles) noexcept {
+  family.warming = candidate;
+  family.warming_left = cycles;
+  pipeline_.refresh_watched();
+}
+
 void Roles::bind_inputs_to(BlockEntry& record, const double* storage) const { pipeline_.bind_inputs(record, storage); }
 
 void Roles::retire(BlockEntry& record) {

@@ -9,6 +9,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -59,6 +60,9 @@ class Roles {
   BlockEntry* install(Family& family, int role, BlockEntry& record) noexcept;
   /// Exchanges the instances of two roles of one family (a promotion).
   void exchange(Family& family, int role_a, int role_b) noexcept;
+  /// Runs `candidate` beside `family`'s primary for `cycles` cycles before it is installed
+  /// (nullptr: no candidate warms any more). The cycle watches the family meanwhile.
+  void set_warming(Family& family, Block* candidate, std::uint32_t cycles) noexcept;
 
   // After the exchange (off the RT thread) ------------------------------------------------
   /// Binds `record`'s inputs into `storage`, laid out as the output storage (a snapshot).

@@ -82,9 +82,8 @@ std::size_t SignalTap::drain(std::vector<double>& out) {
 Scheduler::Scheduler(Pipeline& pipeline, Clock& clock, EventLog& events)
     : pipeline_(pipeline), clock_(clock), events_(events) {}
 
-bool Scheduler::cycle(const Tick& tick, RunResult& result) noexcept {
+bool Scheduler::cycle(const Tick& tick, bool simulated, RunResult& result) noexcept {
   rt_log_set_clock(tick.time_ns, tick.cycle);
-  const bool simulated = clock_.simulated();
   const std::int64_t start = simulated ? 0 : clock_.now_ns();
   for (auto* hook : hooks_) hook->before_cycle(tick);
   // Two clock reads per op are ~20 % of a kawato_planar cycle; on the simulated clock no
@@ -170,7 +169,7 @@ RunResult Scheduler::run_simulated(std::uint64_t cycles, const std::atomic<bool>
     tick.cycle = k;
     tick.time_ns = static_cast<std::int64_t>(k) * period;
     clock_.sleep_until(tick.time_ns);
-    if (!cycle(tick, result)) break;
+    if (!cycle(tick, true, result)) break;
     // Drain often enough that no tap can overflow: a simulated run is never lossy.
     if ((k & 1023) == 1023 && on_idle) on_idle();
   }
@@ -220,7 +219,7 @@ RunResult Scheduler::run_real(std::uint64_t cycles, const std::atomic<bool>& sto
       stats_.wake_latency.record(woke - deadline);
       tick.cycle = k;
       tick.time_ns = deadline - start;
-      if (!cycle(tick, result)) break;
+      if (!cycle(tick, false, result)) break;
       ++k;
       deadline += period;
       const std::int64_t now = clock_.now_ns();

@@ -136,7 +136,8 @@ class Scheduler {
   RunResult run_real(std::uint64_t cycles, const std::atomic<bool>& stop,
                      const std::function<void()>& on_idle);
   /// One cycle; false on fault (result filled).
-  bool cycle(const Tick& tick, RunResult& result) noexcept;
+  /// `simulated`: the clock's simulated(), asked once per run, not per cycle.
+  bool cycle(const Tick& tick, bool simulated, RunResult& result) noexcept;
 
   Pipeline& pipeline_;
   Clock& clock_;

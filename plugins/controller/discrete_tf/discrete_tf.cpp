@@ -369,16 +369,21 @@ Status DiscreteTfController::activate() {
 }
 
 StepStatus DiscreteTfController::step(const Tick& /*tick*/) noexcept {
+  // Locals: the stores below could, as far as the compiler knows, change the ports' pointers.
+  const std::size_t axes = axes_;
+  const double* measurement = measurement_.data();
+  const double* reference = reference_.data();  // nullptr when not connected: a reference of 0
+  double* error = error_.data();
   // Every error first, so a fault leaves all axes as they were.
-  for (std::size_t i = 0; i < axes_; ++i) {
-    const double reference = reference_.connected() ? reference_[i] : 0.0;
-    error_[i] = reference - measurement_[i];
-    if (!std::isfinite(error_[i])) return fault("non-finite measurement or reference");
+  for (std::size_t i = 0; i < axes; ++i) {
+    error[i] = (reference != nullptr ? reference[i] : 0.0) - measurement[i];
+    if (!std::isfinite(error[i])) return fault("non-finite measurement or reference");
   }
-  for (std::size_t i = 0; i < axes_; ++i) {
+  double* out = out_.data();
+  for (std::size_t i = 0; i < axes; ++i) {
     double u = 0.0;
-    if (!sections_[i].step(error_[i], u)) return fault("non-finite controller state or output");
-    out_[i] = u;
+    if (!sections_[i].step(error[i], u)) return fault("non-finite controller state or output");
+    out[i] = u;
   }
   return StepStatus::ok;
 }

@@ -147,10 +147,16 @@ Status KalmanEstimator::activate() {
 StepStatus KalmanEstimator::step(const Tick& /*tick*/) noexcept {
   // Check every input before touching any axis, so a fault leaves the filter as it was.
   const bool coast_on_invalid = invalid_measurement_ == kalman::InvalidMeasurement::predict;
-  for (std::size_t i = 0; i < axes_; ++i) {
-    const double r = use_covariance_input_ ? covariance_[i * axes_ + i] : r_[i];
+  // Locals: the stores below could, as far as the compiler knows, change the members.
+  const std::size_t axes = axes_;
+  const double* measurement = measurement_.data();
+  // R(i,i) at i * (axes + 1) of the covariance input, else r[i].
+  const double* variances = use_covariance_input_ ? covariance_.data() : r_.data();
+  const std::size_t stride = use_covariance_input_ ? axes + 1 : 1;
+  for (std::size_t i = 0; i < axes; ++i) {
+    const double r = variances[i * stride];
     valid_[i] = true;
-    if (!std::isfinite(measurement_[i])) {
+    if (!std::isfinite(measurement[i])) {
       if (!coast_on_invalid) {
         has_innovation_ = false;
         return fault("non-finite measurement");
@@ -177,18 +183,21 @@ StepStatus KalmanEstimator::run(std::array<kalman::AxisFilter<N>, kMaxAxes>& fil
   // Every axis is computed first and committed only if all are finite.
   std::array<typename kalman::AxisFilter<N>::Cycle, kMaxAxes> cycles;
   bool all_updated = true;
-  for (std::size_t i = 0; i < axes_; ++i) {
-    const bool finite = valid_[i] ? filters[i].compute_update(measurement_[i], variance_[i],
+  const std::size_t axes = axes_;
+  const double* measurement = measurement_.data();
+  for (std::size_t i = 0; i < axes; ++i) {
+    const bool finite = valid_[i] ? filters[i].compute_update(measurement[i], variance_[i],
                                                               start_at_measurement_[i], cycles[i])
                                   : filters[i].compute_coast(cycles[i]);
     if (!finite) return fault("Kalman update gave a non-finite state or covariance");
     all_updated = all_updated && valid_[i];
   }
-  for (std::size_t i = 0; i < axes_; ++i) {
+  const bool predicted = timing_ == kalman::OutputTiming::predicted;
+  for (std::size_t i = 0; i < axes; ++i) {
     kalman::AxisFilter<N>& filter = filters[i];
     filter.commit(cycles[i]);
     if (valid_[i]) start_at_measurement_[i] = false;
-    const auto& x = timing_ == kalman::OutputTiming::predicted ? filter.predicted() : filter.filtered();
+    const auto& x = predicted ? filter.predicted() : filter.filtered();
     outputs_.write<N>(i, x, filter.innovation());  // innovation 0 on a coasting axis: the output stays finite
   }
   has_innovation_ = all_updated;

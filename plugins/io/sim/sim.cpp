@@ -147,6 +147,7 @@ Status SimBoard::configure(ConfigureContext& ctx) {
   }
   truth_buffer_.assign(plant_outputs.size(), 0.0);
   clean_signals_.assign(channel_count_, 0.0);
+  volts_.assign(channel_count_, 0.0);
   held_command_.assign(input_count_, 0.0);
 
   if (!params.ok()) return Status::error("invalid parameters");
@@ -235,6 +236,9 @@ Status SimBoard::configure_sensors(ConfigureContext& ctx, Params& params) {
       }
       slot.truth_index.push_back(static_cast<std::size_t>(found - outputs.begin()));
     }
+    slot.reads_truth_prefix = true;
+    for (std::size_t j = 0; j < slot.truth_index.size(); ++j)
+      slot.reads_truth_prefix = slot.reads_truth_prefix && slot.truth_index[j] == j;
     largest_state = std::max(largest_state, slot.model->state_elements().size());
     slot.first_channel = channel_count_;
     slot.channel_count = slot.model->channels().size();
@@ -271,10 +275,6 @@ Status SimBoard::activate() {
 
 StepStatus SimBoard::step(const Tick& tick) noexcept { return sample(tick.time_ns, true); }
 
-bool SimBoard::FaultWindow::covers(std::size_t c, std::int64_t time_ns) const noexcept {
-  return static_cast<std::int64_t>(c) == channel && time_ns >= start_ns && time_ns < end_ns;
-}
-
 Json SimBoard::FaultWindow::describe() const {
   Json window = Json::object();
   window["channel_index"] = static_cast<double>(channel);
@@ -283,13 +283,6 @@ Json SimBoard::FaultWindow::describe() const {
   window["window"] = "start_s <= scheduled time < end_s";
   return window;
 }
-
-bool SimBoard::injected(std::size_t c, std::int64_t time_ns) const noexcept {
-  if (static_cast<std::int64_t>(c) == inject_live_channel_.load(std::memory_order_relaxed)) return true;
-  return nan_window_.covers(c, time_ns);
-}
-
-bool SimBoard::stuck(std::size_t c, std::int64_t time_ns) const noexcept { return stuck_window_.covers(c, time_ns); }
 
 StepStatus SimBoard::sample(std::int64_t time_ns, bool in_cycle) noexcept {
   const bool with_noise = in_cycle;
@@ -301,9 +294,14 @@ StepStatus SimBoard::sample(std::int64_t time_ns, bool in_cycle) noexcept {
   plant_->state(plant_state_.data());
 
   for (const auto& slot : sensors_) {
-    for (std::size_t j = 0; j < slot.truth_index.size(); ++j)
-      sensor_state_[j] = truth_buffer_[slot.truth_index[j]];
-    slot.model->evaluate(sensor_state_.data(), clean_signals_.data() + slot.first_channel);
+    // A model whose state is the plant's first outputs in order reads them where they are.
+    const double* state = truth_buffer_.data();
+    if (!slot.reads_truth_prefix) {
+      for (std::size_t j = 0; j < slot.truth_index.size(); ++j)
+        sensor_state_[j] = truth_buffer_[slot.truth_index[j]];
+      state = sensor_state_.data();
+    }
+    slot.model->evaluate(state, clean_signals_.data() + slot.first_channel);
   }
 
   // Mains pick-up is common to every channel (the same 60 Hz field couples into all wires, as
@@ -315,35 +313,36 @@ StepStatus SimBoard::sample(std::int64_t time_ns, bool in_cycle) noexcept {
     mains_v = mains_amplitude_v_ * std::sin(2.0 * std::numbers::pi * fraction + mains_phase_rad_);
   }
 
-  std::uint64_t saturated = 0;
-  for (std::size_t c = 0; c < channel_count_; ++c) {
+  // Which channel (if any) each fault injection hits on this cycle, decided once.
+  Injections injections;
+  if (in_cycle) {
+    injections.stuck = stuck_window_.active(time_ns);
+    injections.live_nan = inject_live_channel_.load(std::memory_order_relaxed);
+    injections.window_nan = nan_window_.active(time_ns);
     // A frozen converter repeats its last conversion: the reading of the previous cycle.
-    const double previous_count = counts_[c];
-    const double previous_signal = signals_[c];
-    double volts = clean_signals_[c] + channel_offset_v_[c] + mains_v;
-    if (with_noise && noise_std_v_ > 0.0) volts += noise_std_v_ * noise_();
-    if (!std::isfinite(volts)) return fault("non-finite simulated signal");
-    if (converter_.quantizes()) {
-      bool clipped = false;
-      const double code = converter_.code(volts, clipped);
-      if (clipped) ++saturated;
-      counts_[c] = code;
-      signals_[c] = code * converter_.lsb_v;
-    } else {
-      // No converter modelled: counts carry the volts unchanged (an LSB of 1 V).
-      counts_[c] = volts;
-      signals_[c] = volts;
-    }
-    // After the noise draw, so the generator's sequence does not depend on the injection.
-    if (in_cycle && stuck(c, time_ns)) {
-      counts_[c] = stuck_holds_last_ ? previous_count : stuck_count_;
-      signals_[c] = stuck_holds_last_ ? previous_signal : stuck_signal_v_;
-    }
-    if (in_cycle && injected(c, time_ns)) {
-      counts_[c] = std::numeric_limits<double>::quiet_NaN();
-      signals_[c] = std::numeric_limits<double>::quiet_NaN();
+    if (injections.stuck >= 0 && static_cast<std::size_t>(injections.stuck) < channel_count_) {
+      injections.previous_count = counts_[static_cast<std::size_t>(injections.stuck)];
+      injections.previous_signal = signals_[static_cast<std::size_t>(injections.stuck)];
     }
   }
+
+  // The volts of every channel first, the noise drawn in channel order (a draw per channel, up
+  // to a non-finite one), then the converter: a loop without calls keeps its values in registers.
+  const std::size_t channels = channel_count_;
+  const bool noisy = with_noise && noise_std_v_ > 0.0;
+  for (std::size_t c = 0; c < channels; ++c) {
+    double v = clean_signals_[c] + channel_offset_v_[c] + mains_v;
+    if (noisy) v += noise_std_v_ * noise_();
+    volts_[c] = v;
+    if (!std::isfinite(v)) {
+      // The channels before it keep their readings of this cycle, injections included.
+      convert(c);
+      inject(c, injections);
+      return fault("non-finite simulated signal");
+    }
+  }
+  const std::uint64_t saturated = convert(channels);
+  inject(channels, injections);
   if (saturated > 0) {
     saturations_.fetch_add(saturated, std::memory_order_relaxed);
     if (!was_saturated_)
@@ -353,6 +352,46 @@ StepStatus SimBoard::sample(std::int64_t time_ns, bool in_cycle) noexcept {
   }
   was_saturated_ = saturated > 0;
   return StepStatus::ok;
+}
+
+std::uint64_t SimBoard::convert(std::size_t channels) noexcept {
+  std::uint64_t saturated = 0;
+  const double* volts = volts_.data();
+  double* counts = counts_.data();
+  double* signals = signals_.data();
+  if (converter_.quantizes()) {
+    const sim::ConverterScale converter = converter_;
+    for (std::size_t c = 0; c < channels; ++c) {
+      bool clipped = false;
+      const double code = converter.code(volts[c], clipped);
+      saturated += clipped ? 1 : 0;
+      counts[c] = code;
+      signals[c] = code * converter.lsb_v;
+    }
+  } else {
+    // No converter modelled: counts carry the volts unchanged (an LSB of 1 V).
+    for (std::size_t c = 0; c < channels; ++c) {
+      counts[c] = volts[c];
+      signals[c] = volts[c];
+    }
+  }
+  return saturated;
+}
+
+void SimBoard::inject(std::size_t channels, const Injections& injections) noexcept {
+  // After the noise draws, so the generator's sequence does not depend on the injection; a
+  // NaN injection wins over a stuck value on the same channel.
+  const auto hit = [channels](std::int64_t c) { return c >= 0 && static_cast<std::size_t>(c) < channels; };
+  if (hit(injections.stuck)) {
+    const auto c = static_cast<std::size_t>(injections.stuck);
+    counts_[c] = stuck_holds_last_ ? injections.previous_count : stuck_count_;
+    signals_[c] = stuck_holds_last_ ? injections.previous_signal : stuck_signal_v_;
+  }
+  for (const std::int64_t nan : {injections.live_nan, injections.window_nan}) {
+    if (!hit(nan)) continue;
+    counts_[static_cast<std::size_t>(nan)] = std::numeric_limits<double>::quiet_NaN();
+    signals_[static_cast<std::size_t>(nan)] = std::numeric_limits<double>::quiet_NaN();
+  }
 }
 
 StepStatus SimBoard::write(const Tick& tick) noexcept {
@@ -367,6 +406,13 @@ StepStatus SimBoard::write(const Tick& tick) noexcept {
       advance_plant(tick.dt_s, safe_command_.data());
       return fault("non-finite command");
     }
+  }
+  if (command_limit_.empty() && substeps_ == 1) {
+    // Nothing to clamp, one step (dt / 1 is dt): the plant takes the command as it is.
+    const double* u = command_.data();
+    for (std::size_t i = 0; i < input_count_; ++i) held_command_[i] = u[i];
+    plant_->advance(tick.dt_s, held_command_.data());
+    return StepStatus::ok;
   }
   std::uint64_t clamped = 0;
   for (std::size_t i = 0; i < input_count_; ++i) {

@@ -82,6 +82,7 @@ class SimBoard final : public Block, public Tunables, public Board {
     std::vector<std::size_t> truth_index;    ///< per model state element: plant output index
     std::size_t first_channel = 0;
     std::size_t channel_count = 0;
+    bool reads_truth_prefix = false;         ///< truth_index is 0, 1, ...: no gather needed
   };
 
   /// A fault-injection window of the YAML: one channel (-1 = none) on the cycles whose
@@ -90,7 +91,10 @@ class SimBoard final : public Block, public Tunables, public Board {
     std::int64_t channel = -1;
     std::int64_t start_ns = 0;
     std::int64_t end_ns = 0;  ///< exclusive
-    [[nodiscard]] bool covers(std::size_t c, std::int64_t time_ns) const noexcept;
+    /// The channel it makes faulty on the cycle scheduled at time_ns, or -1.
+    [[nodiscard]] std::int64_t active(std::int64_t time_ns) const noexcept {
+      return channel >= 0 && time_ns >= start_ns && time_ns < end_ns ? channel : -1;
+    }
     /// describe(): the channel's index, start_s, end_s and what the window means.
     [[nodiscard]] Json describe() const;
   };
@@ -99,10 +103,18 @@ class SimBoard final : public Block, public Tunables, public Board {
   /// Fill every output from the plant's current state; noise only when `with_noise`.
   /// `in_cycle`: a scheduled cycle (noise and fault injection apply), not activate()'s sample.
   StepStatus sample(std::int64_t time_ns, bool in_cycle) noexcept;
-  /// Whether channel c is NaN-injected on the cycle scheduled at time_ns.
-  [[nodiscard]] bool injected(std::size_t c, std::int64_t time_ns) const noexcept;
-  /// Whether channel c is stuck on the cycle scheduled at time_ns.
-  [[nodiscard]] bool stuck(std::size_t c, std::int64_t time_ns) const noexcept;
+  /// The fault injections of one cycle: each the channel it hits, or -1.
+  struct Injections {
+    std::int64_t stuck = -1;
+    std::int64_t live_nan = -1;    ///< the tunable inject_nan_channel
+    std::int64_t window_nan = -1;  ///< the YAML inject_nan window
+    double previous_count = 0.0, previous_signal = 0.0;  ///< the stuck channel's last reading
+  };
+  /// Channels [0, channels) of volts_ through the converter into counts and signals; the
+  /// number of clipped samples.
+  std::uint64_t convert(std::size_t channels) noexcept;
+  /// The injections that hit channels [0, channels), over their readings of this cycle.
+  void inject(std::size_t channels, const Injections& injections) noexcept;
   /// `{channel, start_s, duration_s}` of a fault-injection map: the channel's index (-1 when
   /// the map is invalid, which is reported) and the window [start_ns, end_ns).
   void parse_injection_window(Params& window, bool sensors_ok, FaultWindow& out);
@@ -152,6 +164,7 @@ class SimBoard final : public Block, public Tunables, public Board {
   std::vector<double> truth_buffer_;
   std::vector<double> sensor_state_;
   std::vector<double> clean_signals_;
+  std::vector<double> volts_;  ///< this cycle's volts of each channel, before the converter
   std::vector<double> held_command_;
 
   sim::GaussianNoise noise_;

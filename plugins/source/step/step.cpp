@@ -32,13 +32,19 @@ Status StepSource::configure(ConfigureContext& ctx) {
 }
 
 StepStatus StepSource::step(const Tick& tick) noexcept {
-  // Number of steps whose time has come; binary search, no state, so any tick order works.
-  const auto reached = static_cast<std::size_t>(
-      std::upper_bound(step_time_ns_.begin(), step_time_ns_.end(), tick.time_ns) -
-      step_time_ns_.begin());
+  // Number of steps whose time has come. Nearly always the previous cycle's: that count is
+  // kept as a hint and checked against this tick's time (so any tick order still works), a
+  // binary search only when it does not hold.
+  const std::int64_t* times = step_time_ns_.data();
+  const std::size_t steps = step_time_ns_.size();
+  std::size_t reached = reached_hint_;
+  if ((reached > 0 && tick.time_ns < times[reached - 1]) || (reached < steps && tick.time_ns >= times[reached])) {
+    reached = static_cast<std::size_t>(std::upper_bound(times, times + steps, tick.time_ns) - times);
+    reached_hint_ = reached;
+  }
   const std::size_t size = output_.size();
   const double* value = reached == 0 ? output_.offset().data() : &step_values_[(reached - 1) * size];
-  OutputPort& out = output_.port();
+  double* out = output_.port().data();
   for (std::size_t i = 0; i < size; ++i) out[i] = value[i];
   return StepStatus::ok;
 }

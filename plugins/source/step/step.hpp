@@ -15,6 +15,7 @@
 // set_tunable() on the RT thread at a cycle boundary.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -36,6 +37,7 @@ class StepSource final : public source::ElementSource {
  private:
   std::vector<std::int64_t> step_time_ns_;  ///< strictly increasing
   std::vector<double> step_values_;         ///< row-major: step x element
+  std::size_t reached_hint_ = 0;            ///< steps reached at the last step() (a hint only)
 };
 
 }  // namespace lode::plugins

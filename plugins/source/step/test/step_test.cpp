@@ -3,7 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <string>
 
 #include "lode/sdk/testing/harness.hpp"
@@ -51,6 +53,37 @@ steps:
     ASSERT_EQ(h.tick().time_ns, static_cast<std::int64_t>(e.cycle) * 1'000'000);
     EXPECT_EQ(h.output("out")[0], e.x) << "t = " << e.cycle << " ms";
     EXPECT_EQ(h.output("out")[1], e.theta) << "t = " << e.cycle << " ms";
+  }
+}
+
+TEST(SourceStep, AnyTickOrderGivesTheValueOfItsOwnTime) {
+  // step() starts from the count of steps the last tick had reached; a tick before or after
+  // it, by any amount, must still get the value of its own scheduled time.
+  BlockHarness h("source.step", R"(
+names: [x]
+units: [m]
+offset: [-1]
+steps:
+  - {time_s: 0.1, value: [1]}
+  - {time_s: 0.25, value: [2]}
+  - {time_s: 1, value: [3]})",
+                 kRateHz);
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  const auto expected = [](std::int64_t ms) { return ms < 100 ? -1.0 : ms < 250 ? 1.0 : ms < 1000 ? 2.0 : 3.0; };
+  std::uint64_t state = 12345;
+  for (int i = 0; i < 3000; ++i) {
+    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+    // Mostly neighbours of the step times, where a stale count is off by one.
+    const std::int64_t ms = i % 2 == 0 ? static_cast<std::int64_t>((state >> 33) % 1500)
+                                       : std::int64_t{100} * static_cast<std::int64_t>((state >> 33) % 11) +
+                                             static_cast<std::int64_t>((state >> 20) % 3) - 1;
+    lode::Tick t;
+    t.cycle = static_cast<std::uint64_t>(std::max<std::int64_t>(ms, 0));
+    t.time_ns = ms * 1'000'000;
+    t.dt_s = 1.0 / kRateHz;
+    ASSERT_EQ(h.block().step(t), lode::StepStatus::ok);
+    ASSERT_EQ(h.output("out")[0], expected(ms)) << "t = " << ms << " ms, draw " << i;
   }
 }
 
