@@ -137,6 +137,13 @@ bool RunServices::wait_for_subscribers() {
 
 void RunServices::set_running(bool running) {
   impl_->recorder->set_running(running);
+  // On the simulated clock on_idle() runs between the cycles, on their thread: the recording
+  // gets a thread of its own while they run (with the real clock on_idle() already runs
+  // beside the RT thread).
+  if (impl_->options.simulated) {
+    if (running) impl_->recorder->start_writer();
+    else impl_->recorder->stop_writer();
+  }
   impl_->hot_swap->set_running(running);
   impl_->control->set_running(running);
 }
