@@ -43,7 +43,7 @@ class RunRecorder {
   void set_running(bool running) { running_.store(running); }
   /// On the simulated clock the cycles and on_idle() share one thread: from here until
   /// stop_writer() a thread of its own drains the tap and writes the file while the cycles
-  /// run, so that a simulated run (lode run --clock sim, lode replay) uses a second CPU for
+  /// run, so that a replay (RunServices starts it for `lode replay`) uses a second CPU for
   /// the recording instead of pausing its cycles for it.
   void start_writer();
   /// Wakes the writer for the last time and waits for it (what it left is drained by close()).

@@ -1,4 +1,4 @@
-// The recording of a simulated run (lode run --clock sim --record, lode replay): written by a
+// The recording of a replay (lode replay, a simulated run of known length): written by a
 // thread of its own while the cycles run, and still lossless when that thread falls behind
 // (the cycle thread then drains the tap itself before it can overflow).
 #include <gtest/gtest.h>
