@@ -13,11 +13,13 @@
 
 namespace lode {
 
-LogDrain::LogDrain(EventLog& events) : events_(events), journal_(cli::is_journal_stream(STDERR_FILENO)) {
-  thread_ = std::thread([this] {
+LogDrain::LogDrain(EventLog& events, std::chrono::milliseconds pause)
+    : events_(events), journal_(cli::is_journal_stream(STDERR_FILENO)) {
+  thread_ = std::thread([this, pause] {
     while (running_.load(std::memory_order_relaxed)) {
       drain_once();
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      std::unique_lock lock(pause_mutex_);
+      pause_.wait_for(lock, pause, [this] { return !running_.load(); });
     }
   });
 }
@@ -64,7 +66,13 @@ void LogDrain::drain_once() {
 }
 
 void LogDrain::stop() {
-  if (!running_.exchange(false)) return;
+  {
+    // Under the mutex: the thread either has not yet checked running_ (and will not wait) or
+    // is waiting (and is woken).
+    std::lock_guard lock(pause_mutex_);
+    if (!running_.exchange(false)) return;
+  }
+  pause_.notify_one();
   if (thread_.joinable()) thread_.join();
   drain_once();
 }

@@ -40,13 +40,58 @@ Status RunRecorder::open(const std::string& path, std::uint64_t expected_cycles)
   return open_locked(path, expected_cycles);
 }
 
+RunRecorder::~RunRecorder() { stop_writer(); }
+
 void RunRecorder::on_idle() {
+  if (writer_.joinable()) {
+    auto& tap = tap_.tap();
+    if (tap.queued() * 2 <= tap.capacity()) {
+      // No mutex here: the writer may hold it for a whole chunk's write. A wake that comes
+      // just before it waits is lost and it wakes at the end of its pause instead.
+      writer_pending_.store(true, std::memory_order_release);
+      writer_wake_.notify_one();
+      return;
+    }
+  }
   std::lock_guard lock(mutex_);
   drain_locked();
   flush_locked(false);
 }
 
+void RunRecorder::start_writer() {
+  if (writer_.joinable()) return;
+  {
+    std::lock_guard lock(mutex_);
+    writer_stop_ = false;
+  }
+  writer_ = std::thread([this] { write_until_stopped(); });
+}
+
+void RunRecorder::stop_writer() {
+  if (!writer_.joinable()) return;
+  {
+    std::lock_guard lock(mutex_);
+    writer_stop_ = true;
+  }
+  writer_wake_.notify_one();
+  writer_.join();
+}
+
+void RunRecorder::write_until_stopped() {
+  // The pause only bounds a lost wake: on_idle() wakes the writer every 1024 cycles.
+  constexpr auto kPause = std::chrono::milliseconds(5);
+  std::unique_lock lock(mutex_);
+  while (!writer_stop_) {
+    writer_wake_.wait_for(lock, kPause, [this] { return writer_stop_ || writer_pending_.load(std::memory_order_acquire); });
+    writer_pending_.store(false, std::memory_order_relaxed);
+    if (writer_held_.load()) continue;
+    drain_locked();
+    flush_locked(false);
+  }
+}
+
 Status RunRecorder::close() {
+  stop_writer();
   std::lock_guard lock(mutex_);
   return recorder_ ? close_locked() : Status{};
 }
@@ -106,12 +151,15 @@ Status RunRecorder::open_locked(const std::string& path, std::uint64_t expected_
 
 void RunRecorder::drain_locked() {
   if (!recorder_) return;
-  rows_.clear();
-  tap_.tap().drain(rows_);
-  const auto& tap = tap_.tap();
+  // A batch at a time: rows_ stays one batch long (in the cache, never reallocated after the
+  // first), however far behind the tap is.
+  constexpr std::size_t kBatch = 1024;
+  auto& tap = tap_.tap();
   const std::size_t stride = tap.stride();
-  const std::size_t count = rows_.size() / stride;
-  if (count > 0) {
+  for (;;) {
+    rows_.clear();
+    const std::size_t count = tap.drain(rows_, kBatch);
+    if (count == 0) break;
     // Every series gets the whole batch in one call: the per-row work is the transposition.
     row_cycles_.resize(count);
     row_stamps_.resize(count);
@@ -124,6 +172,7 @@ void RunRecorder::drain_locked() {
       recorder_->append_rows(series_[i], count, row_cycles_.data(), row_stamps_.data(), rows_.data() + tap.column(i),
                              stride);
     recorded_cycles_ += count;
+    if (count < kBatch) break;
   }
   for (const auto& e : events_.since(event_cursor_)) recorder_->add_event(e.cycle, e.time_ns, e.kind, e.text);
 }

@@ -6,10 +6,12 @@
 
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "lode/control.hpp"
@@ -29,6 +31,9 @@ class RunRecorder {
   /// describe() reads every block. `digest` (which outlives the recorder) gives the output
   /// digest and its algorithm when a whole run closes.
   RunRecorder(const Pipeline& pipeline, Scheduler& scheduler, EventLog& events, const OutputDigest& digest);
+  ~RunRecorder();  ///< stops the writer (start_writer) if it runs
+  RunRecorder(const RunRecorder&) = delete;
+  RunRecorder& operator=(const RunRecorder&) = delete;
 
   /// The hook to add to the scheduler (RT side: copies the outputs while a file is open).
   [[nodiscard]] CycleHook& hook() { return tap_; }
@@ -36,7 +41,18 @@ class RunRecorder {
   /// length is known (a replay), so the file is laid out for it (Recorder::expect_rows).
   Status open(const std::string& path, std::uint64_t expected_cycles = 0);
   void set_running(bool running) { running_.store(running); }
+  /// On the simulated clock the cycles and on_idle() share one thread: from here until
+  /// stop_writer() a thread of its own drains the tap and writes the file while the cycles
+  /// run, so that a replay (RunServices starts it for `lode replay`) uses a second CPU for
+  /// the recording instead of pausing its cycles for it.
+  void start_writer();
+  /// Wakes the writer for the last time and waits for it (what it left is drained by close()).
+  void stop_writer();
+  /// Tests: the writer wakes but drains nothing while held (a writer that falls behind).
+  void hold_writer(bool held) { writer_held_.store(held); }
   /// Off the RT thread, between cycles: drain the tap, flush when the interval has passed.
+  /// With the writer running, only wakes it; drains here (waiting for the writer) when the tap
+  /// is more than half full, so that a simulated run stays lossless if the writer falls behind.
   void on_idle();
   /// Closes the file if one is open (end of run).
   Status close();
@@ -69,6 +85,7 @@ class RunRecorder {
   void flush_locked(bool force);
   void failed_locked(const std::string& why);
   Status close_locked();
+  void write_until_stopped();
 
   const Pipeline& pipeline_;
   Scheduler& scheduler_;
@@ -97,6 +114,14 @@ class RunRecorder {
   Json finished_ = Json::array();
   bool from_start_ = false;  // opened before the first cycle
   std::optional<std::uint64_t> first_cycle_;
+
+  // The writer of start_writer(): it waits on writer_wake_ with mutex_, and is woken by
+  // on_idle() (writer_pending_) or stop_writer() (writer_stop_, set with mutex_ held).
+  std::thread writer_;
+  std::condition_variable writer_wake_;
+  std::atomic<bool> writer_pending_{false};
+  std::atomic<bool> writer_held_{false};
+  bool writer_stop_ = false;
 };
 
 }  // namespace lode::cli

@@ -137,6 +137,16 @@ bool RunServices::wait_for_subscribers() {
 
 void RunServices::set_running(bool running) {
   impl_->recorder->set_running(running);
+  // On the simulated clock on_idle() runs between the cycles, on their thread: a replay's
+  // recording gets a thread of its own while they run (with the real clock on_idle() already
+  // runs beside the RT thread). Only a replay (its length known, the file laid out for it):
+  // `lode run --clock sim` keeps writing between its cycles, where the moments it writes and
+  // flushes at, and so what a full disk leaves in its file (the fault matrix), are those of
+  // its cycle count, not of a second thread's timing.
+  if (impl_->options.simulated && impl_->options.record_rows > 0) {
+    if (running) impl_->recorder->start_writer();
+    else impl_->recorder->stop_writer();
+  }
   impl_->hot_swap->set_running(running);
   impl_->control->set_running(running);
 }

@@ -64,10 +64,12 @@ void SignalTap::capture(std::uint64_t cycle, std::int64_t time_ns) noexcept {
   ring_.publish(header);
 }
 
-std::size_t SignalTap::drain(std::vector<double>& out) {
+std::size_t SignalTap::drain(std::vector<double>& out, std::size_t max_records) {
   std::size_t n = 0;
   SampleHeader header;
-  while (const double* values = ring_.front(header)) {
+  while (n < max_records) {
+    const double* values = ring_.front(header);
+    if (values == nullptr) break;
     out.push_back(static_cast<double>(header.cycle));
     out.push_back(static_cast<double>(header.stamp_ns) * 1e-9);
     out.insert(out.end(), values, values + (stride_ - 2));

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 #include <hdf5.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -273,6 +274,48 @@ TEST(Hdf5RecorderTest, SharedReadIsOneCopyUntilTheFileChanges) {
   ASSERT_EQ((*rewritten)->series.size(), 1U);
   EXPECT_EQ((*rewritten)->series.front().values.front(), 2.0);
   EXPECT_FALSE(read_recording_shared(scratch_path("missing.h5"))) << "a missing file must be an error";
+}
+
+// A recording written over a plain file replaces it with a new file (ext4 writes a file that
+// was truncated and rewritten out to disk inside its close); over a symbolic link or a file
+// with a second name, the file itself is rewritten, as a truncation did.
+TEST(Hdf5RecorderTest, CreateReplacesAPlainFileAndRewritesALinkedOne) {
+  auto write = [](const std::string& path, double value) {
+    auto recorder = Recorder::create(path, "lode run");
+    ASSERT_TRUE(recorder) << recorder.error();
+    auto handle = (*recorder)->add_series({"s", "", "signal", {"v"}, {"m"}, 800.0, 800.0, 1});
+    ASSERT_TRUE(handle) << handle.error();
+    (*recorder)->append(*handle, 0, 0, 0, &value);
+    ASSERT_TRUE((*recorder)->close());
+  };
+  auto value_in = [](const std::string& path) {
+    auto back = read_recording(path);
+    return back && !back->series.empty() && !back->series[0].values.empty() ? back->series[0].values[0] : NAN;
+  };
+  auto inode = [](const std::string& path) {
+    struct stat st {};
+    return ::stat(path.c_str(), &st) == 0 ? st.st_ino : 0;
+  };
+  const std::string plain = scratch_path("replaced.h5");
+  write(plain, 1.0);
+  const auto first = inode(plain);
+  std::ifstream held(plain);  // a reader that still has the old file open keeps it
+  write(plain, 2.0);
+  EXPECT_EQ(value_in(plain), 2.0);
+  EXPECT_NE(inode(plain), first) << "the file was truncated and rewritten, not replaced";
+
+  const std::string target = scratch_path("target.h5"), link = scratch_path("link.h5"), second = scratch_path("second.h5");
+  write(target, 1.0);
+  fs::remove(link);
+  fs::create_symlink(target, link);
+  write(link, 3.0);
+  EXPECT_TRUE(fs::is_symlink(link)) << "the symbolic link was replaced by a file";
+  EXPECT_EQ(value_in(target), 3.0) << "the link's target was not rewritten";
+  fs::remove(second);
+  fs::create_hard_link(target, second);
+  write(second, 4.0);
+  EXPECT_EQ(fs::hard_link_count(target), 2U) << "the second name was replaced by a file of its own";
+  EXPECT_EQ(value_in(target), 4.0);
 }
 
 TEST(Hdf5RecorderTest, SkippedCyclesAreCountedAsGaps) {

@@ -65,11 +65,15 @@ class SignalTap final : public CycleHook {
   /// RT thread. Record = [cycle, time_s, values of every signal...].
   void capture(std::uint64_t cycle, std::int64_t time_ns) noexcept;
   void after_cycle(const Tick& tick) noexcept override { capture(tick.cycle, tick.time_ns); }
-  /// Consumer thread: append every available record to `out`; returns records appended.
-  std::size_t drain(std::vector<double>& out);
+  /// Consumer thread: append every available record (at most `max_records`) to `out`;
+  /// returns records appended.
+  std::size_t drain(std::vector<double>& out, std::size_t max_records = SIZE_MAX);
   [[nodiscard]] std::size_t stride() const { return stride_; }
   [[nodiscard]] const std::vector<SignalRef>& signals() const { return signals_; }
   [[nodiscard]] std::uint64_t dropped() const { return ring_.dropped(); }
+  /// Records captured and not yet drained, and how many the ring holds (either thread).
+  [[nodiscard]] std::size_t queued() const noexcept { return ring_.size(); }
+  [[nodiscard]] std::size_t capacity() const noexcept { return ring_.capacity(); }
   /// Column of signal i's first element within a record.
   [[nodiscard]] std::size_t column(std::size_t signal_index) const { return columns_[signal_index]; }
 

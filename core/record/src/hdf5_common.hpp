@@ -25,9 +25,12 @@ inline constexpr int kFormatVersion = 1;
 inline constexpr hsize_t kMaxChunkRows = 4096;
 inline constexpr hsize_t kMinChunkRows = 64;
 inline constexpr hsize_t kEventChunkRows = 256;
-/// Chunk of a recording whose length is known in advance (Recorder::expect_rows): 16384 rows
-/// = 128 KiB per column, so a 30 s replay at 800 Hz is two writes per column, not thirty.
-inline constexpr hsize_t kKnownLengthChunkRows = 16384;
+/// Chunk of a recording whose length is known in advance (Recorder::expect_rows): 2048 rows
+/// = 16 KiB per column. The rows of the last chunk are written when the file is closed, after
+/// the last cycle, while the chunks before it are written beside the cycles (a simulated
+/// run's recording thread): at 16384 rows, that last write was a third of a 30 s replay's
+/// close and the column buffers (12.5 MiB) to fault in.
+inline constexpr hsize_t kKnownLengthChunkRows = 2048;
 inline constexpr std::array<const char*, 4> kTimeColumns = {"cycle", "stamp_ns", "captured_ns", "time_s"};
 
 // ---- HDF5 plumbing ------------------------------------------------------------------------
@@ -212,7 +215,7 @@ inline Handle create_column(hid_t group, const std::string& name, hid_t file_typ
 /// Writes `count` rows from `data` at row `old_rows` of `dataset`, first extending it when
 /// its `extent` is shorter (a dataset created at its final size is never extended).
 inline bool append_to_column(hid_t dataset, hsize_t old_rows, hsize_t count, hid_t memory_type, const void* data,
-                             hsize_t extent) {
+                             hsize_t extent, hid_t transfer = H5P_DEFAULT) {
   const hsize_t new_rows = old_rows + count;
   if (new_rows > extent && H5Dset_extent(dataset, &new_rows) < 0) return false;
   Handle file_space(H5Dget_space(dataset));
@@ -221,7 +224,7 @@ inline bool append_to_column(hid_t dataset, hsize_t old_rows, hsize_t count, hid
     return false;
   }
   Handle memory_space(H5Screate_simple(1, &count, nullptr));
-  return H5Dwrite(dataset, memory_type, memory_space.get(), file_space.get(), H5P_DEFAULT, data) >= 0;
+  return H5Dwrite(dataset, memory_type, memory_space.get(), file_space.get(), transfer, data) >= 0;
 }
 
 inline std::string utc_now() {

@@ -46,7 +46,8 @@ struct SeriesInfo {
 
 class Recorder {
  public:
-  /// Creates (truncates) `path`. `source` says which program writes it: "lode record", "lode run".
+  /// Creates `path`, replacing a file already there (a plain file with one name is removed
+  /// first, any other is truncated). `source` says which program writes it: "lode record", "lode run".
   static Expected<std::unique_ptr<Recorder>> create(const std::string& path, const std::string& source);
   ~Recorder();  ///< closes (flushes) if still open; an error then is lost: call close() to see it
 
@@ -77,7 +78,7 @@ class Recorder {
 
   /// The number of rows every series will get, when it is known before the first
   /// add_series() (a replay runs a known number of cycles): the series added after it are
-  /// created at that length, in chunks of up to 16384 rows written without HDF5's chunk
+  /// created at that length, in chunks of up to 2048 rows written without HDF5's chunk
   /// cache, so a chunk costs one H5Dwrite per column and no H5Dset_extent. More rows still
   /// extend the datasets; fewer are cut off at close(). Memory: up to one chunk of rows per
   /// series is held before it is written.
