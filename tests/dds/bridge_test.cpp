@@ -243,6 +243,16 @@ TEST(Participant, LoopbackIsHermetic) {
   EXPECT_EQ(qos.wire_protocol().builtin.metatrafficMulticastLocatorList.size(), 0u);
 }
 
+/// The shared-memory transports a participant's QoS configures.
+std::vector<std::shared_ptr<eprosima::fastdds::rtps::SharedMemTransportDescriptor>> shared_memory_transports(
+    const eprosima::fastdds::dds::DomainParticipantQos& qos) {
+  std::vector<std::shared_ptr<eprosima::fastdds::rtps::SharedMemTransportDescriptor>> found;
+  for (const auto& transport : qos.transport().user_transports)
+    if (auto shm = std::dynamic_pointer_cast<eprosima::fastdds::rtps::SharedMemTransportDescriptor>(transport))
+      found.push_back(std::move(shm));
+  return found;
+}
+
 TEST(Participant, SharedMemoryHoldsASecondOfABusyPipeline) {
   // A best-effort sample is lost when the reader's port queue or the writer's segment is
   // full; Fast DDS's defaults (512 descriptors, 512 KiB) are 90 ms of 7 topics at 800 Hz,
@@ -254,16 +264,12 @@ TEST(Participant, SharedMemoryHoldsASecondOfABusyPipeline) {
                           lode::TransportSpec::Kind::network}) {
     options.transport.kind = kind;
     ASSERT_TRUE(lode::dds::configure_participant_qos(options, qos));
-    int shared_memory = 0;
-    for (const auto& transport : qos.transport().user_transports) {
-      const auto shm =
-          std::dynamic_pointer_cast<eprosima::fastdds::rtps::SharedMemTransportDescriptor>(transport);
-      if (!shm) continue;
-      ++shared_memory;
+    const auto shared_memory = shared_memory_transports(qos);
+    for (const auto& shm : shared_memory) {
       EXPECT_GE(shm->port_queue_capacity(), 7u * 800u) << lode::to_string(kind) << ": port queue (descriptors)";
       EXPECT_GE(shm->segment_size(), 4u << 20) << lode::to_string(kind) << ": segment (bytes)";
     }
-    EXPECT_EQ(shared_memory, 1) << lode::to_string(kind);
+    EXPECT_EQ(shared_memory.size(), 1u) << lode::to_string(kind);
   }
 }
 
@@ -278,12 +284,8 @@ TEST(Participant, SharedMemoryPortsAreFoundAliveWithinAShortSleep) {
                           lode::TransportSpec::Kind::network}) {
     options.transport.kind = kind;
     ASSERT_TRUE(lode::dds::configure_participant_qos(options, qos));
-    for (const auto& transport : qos.transport().user_transports) {
-      if (const auto shm =
-              std::dynamic_pointer_cast<eprosima::fastdds::rtps::SharedMemTransportDescriptor>(transport)) {
-        EXPECT_LE(shm->healthy_check_timeout_ms() / 3, 50u) << lode::to_string(kind) << ": retry after (ms)";
-      }
-    }
+    for (const auto& shm : shared_memory_transports(qos))
+      EXPECT_LE(shm->healthy_check_timeout_ms() / 3, 50u) << lode::to_string(kind) << ": retry after (ms)";
   }
 }
 

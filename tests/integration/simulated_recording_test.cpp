@@ -74,24 +74,25 @@ RecordedRun run_recorded(std::uint64_t cycles, bool hold_writer) {
   return out;
 }
 
-TEST(SimulatedRecording, TheWriterThreadRecordsEveryCycle) {
-  const auto run = run_recorded(50000, false);
-  EXPECT_EQ(run.cycles, 50000u);
-  EXPECT_EQ(run.recorded, 50000u);
+/// Every one of the run's cycles in the file, none dropped, and the file's digest the run's.
+void expect_every_cycle_recorded(const RecordedRun& run, std::uint64_t cycles) {
+  EXPECT_EQ(run.cycles, cycles);
+  EXPECT_EQ(run.recorded, cycles);
   EXPECT_EQ(run.dropped, 0u);
   EXPECT_TRUE(run.complete);
   EXPECT_EQ(run.recorded_digest, run.digest);
+}
+
+TEST(SimulatedRecording, TheWriterThreadRecordsEveryCycle) {
+  const auto run = run_recorded(50000, false);
+  expect_every_cycle_recorded(run, 50000);
 }
 
 // More cycles than the tap holds (32768): without the cycle thread's own drains, a writer that
 // drains nothing loses every cycle after the tap fills.
 TEST(SimulatedRecording, AWriterThatFallsBehindLosesNoCycle) {
   const auto run = run_recorded(50000, true);
-  EXPECT_EQ(run.cycles, 50000u);
-  EXPECT_EQ(run.recorded, 50000u);
-  EXPECT_EQ(run.dropped, 0u);
-  EXPECT_TRUE(run.complete);
-  EXPECT_EQ(run.recorded_digest, run.digest);
+  expect_every_cycle_recorded(run, 50000);
 }
 
 }  // namespace

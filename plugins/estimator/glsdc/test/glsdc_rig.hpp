@@ -23,6 +23,14 @@ constexpr double kRateHz = 800.0;
 constexpr double kPitch = 0.0508;
 constexpr double kQuarterPitch = kPitch / 4.0;
 
+/// Two sensors half a pitch apart in x and y: at x = y = l/4 both sit at a field extremum,
+/// where every slope of harmonics [1, 5] vanishes (cos(pi/2) = cos(5 pi/2) = 0) and H'WH has
+/// zero x and y columns.
+inline const std::string kFieldExtremumModels =
+    "hall:\n  plugin: sensor.halbach_hall\n  sensors:\n"
+    "    - {name: A, x_m: 0.0, y_m: 0.0, channels: [a1, b1]}\n"
+    "    - {name: B, x_m: 0.0254, y_m: 0.0254, channels: [c1, d2]}\n";
+
 /// A `models:` map with one halbach_hall model named `name`. The three-sensor configuration
 /// adds C = (+95.25, +6.35) mm: sensor A turned by 90 degrees about the centre of mass, so that
 /// a rotation moves C in world Y (seen by its a channel) as much as it moves A and B in world X.

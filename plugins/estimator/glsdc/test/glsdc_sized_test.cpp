@@ -83,10 +83,7 @@ TEST(GlsdcSized, SizedPathGivesTheGenericResultsBitForBit) {
 TEST(GlsdcSized, SingularTicksMatchTheGenericPath) {
   // The field-extremum geometry of SingularNormalMatrixHoldsTheEstimate: the kept (singular)
   // factorisation must skip the same ticks as the generic path, which factors again each time.
-  const std::string models =
-      "hall:\n  plugin: sensor.halbach_hall\n  sensors:\n"
-      "    - {name: A, x_m: 0.0, y_m: 0.0, channels: [a1, b1]}\n"
-      "    - {name: B, x_m: 0.0254, y_m: 0.0254, channels: [c1, d2]}\n";
+  const std::string& models = kFieldExtremumModels;
   Rig sized(params_with_initial(kQuarterPitch, kQuarterPitch, 0.0), models);
   Rig generic(params_with_initial(kQuarterPitch, kQuarterPitch, 0.0, "compile_time_sizes: false\n"), models);
   ASSERT_TRUE(sized.ok() && generic.ok());

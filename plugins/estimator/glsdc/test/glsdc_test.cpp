@@ -116,13 +116,9 @@ TEST(Glsdc, NonFiniteMeasurementFaults) {
 }
 
 TEST(Glsdc, SingularNormalMatrixHoldsTheEstimate) {
-  // Two sensors half a pitch apart in x and y, both at a field extremum at x = y = l/4: every
-  // slope of [1, 5] vanishes there (cos(pi/2) = cos(5 pi/2) = 0), so H'WH has zero x and y
-  // columns. The update must be skipped and the estimate held.
-  const std::string models =
-      "hall:\n  plugin: sensor.halbach_hall\n  sensors:\n"
-      "    - {name: A, x_m: 0.0, y_m: 0.0, channels: [a1, b1]}\n"
-      "    - {name: B, x_m: 0.0254, y_m: 0.0254, channels: [c1, d2]}\n";
+  // At the field extremum of kFieldExtremumModels H'WH has zero x and y columns: the update
+  // must be skipped and the estimate held.
+  const std::string& models = kFieldExtremumModels;
   Rig rig(params_with_initial(kQuarterPitch, kQuarterPitch, 0.0), models);
   ASSERT_TRUE(rig.ok());
   std::vector<double> y(4);
