@@ -34,8 +34,10 @@ struct Args {
   [[nodiscard]] long long integer(const std::string& o, long long fallback) const;
 };
 
-/// Set by SIGINT/SIGTERM.
+/// Set by SIGINT, SIGTERM and SIGHUP once install_stop_handlers() has run.
 std::atomic<bool>& stop_requested();
 void install_stop_handlers();
+/// A write to a closed pipe fails with EPIPE instead of killing the process (for every command).
+void ignore_broken_pipes();
 
 }  // namespace lode::cli

@@ -53,6 +53,7 @@ int echo(const Args& args) {
                       static_cast<unsigned long long>(e.cycle), static_cast<double>(e.stamp_ns) * 1e-9,
                       e.kind.c_str(), e.text.c_str());
           std::fflush(stdout);
+          if (std::ferror(stdout)) watch.output_closed();
         }
         watch.follow(e.pipeline);
         if (e.kind == "stop") watch.pipeline_stopped(e.pipeline);
@@ -74,6 +75,7 @@ int echo(const Args& args) {
         for (const auto& b : t.blocks)
           std::printf("    %-22s p50 %.2f  p99 %.2f  max %.1f us\n", b.name.c_str(), b.p50_us, b.p99_us, b.max_us);
         std::fflush(stdout);
+        if (std::ferror(stdout)) watch.output_closed();
       });
     }
     if (!sub) {
@@ -125,6 +127,8 @@ int echo(const Args& args) {
         for (double v : s.values) std::printf(" %.17g", v);
         std::printf("\n");
       }
+      // A write to a reader that has gone fails (EPIPE, ignored as a signal): stop cleanly.
+      if (std::ferror(stdout)) watch.output_closed();
       if (count > 0 && received >= count) watch.done();
     });
     if (!sub) {
@@ -156,6 +160,7 @@ int echo(const Args& args) {
     std::fprintf(stderr, "lode echo: latency RT capture -> received (us): p50 %.1f  p90 %.1f  p99 %.1f  p99.9 %.1f  max %.1f  (%zu samples)\n",
                  q(0.5), q(0.9), q(0.99), q(0.999), latencies_us.back(), latencies_us.size());
   }
+  if (why == "output closed") return kExitOk;  // the reader had what it wanted (`| head -3`)
   if (count > 0 && received < count) return kExitFault;
   return received > 0 ? kExitOk : kExitFault;
 }

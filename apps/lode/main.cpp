@@ -12,6 +12,7 @@
 int main(int argc, char** argv) {
   spdlog::set_pattern("[%H:%M:%S.%e] [%^%l%$] %v");
   using namespace lode::cli;
+  ignore_broken_pipes();
   const std::vector<Command> commands = {run_command(),    check_command(),  describe_command(), plugins_command(),
                                          replay_command(), plot_command(),   bench_command(),    rtcheck_command(),
                                          topics_command(), echo_command(),   record_command(),   set_command(),

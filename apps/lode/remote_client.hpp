@@ -56,9 +56,12 @@ class StopWatch {
     followed_.insert(pipeline);
   }
   void done() { done_.store(true); }
+  /// Whoever read the standard output has gone (`lode echo X | head`): nothing more to print.
+  void output_closed() { output_closed_.store(true); }
   /// Why it is time to stop ("" = not yet).
   std::string reason() {
     if (done_.load()) return "done";
+    if (output_closed_.load()) return "output closed";
     if (stop_requested().load()) return "interrupted";
     if (duration_s_ > 0 && std::chrono::steady_clock::now() - start_ > std::chrono::duration<double>(duration_s_)) return "duration";
     std::lock_guard lock(mutex_);
@@ -74,6 +77,7 @@ class StopWatch {
   std::chrono::steady_clock::time_point start_;
   double duration_s_;
   std::atomic<bool> done_{false};
+  std::atomic<bool> output_closed_{false};
   std::mutex mutex_;
   std::set<std::string> followed_, stopped_;
   std::optional<std::chrono::steady_clock::time_point> stopped_at_;
