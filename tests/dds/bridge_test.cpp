@@ -230,6 +230,27 @@ TEST(Participant, InvalidAddressesNameTheField) {
   EXPECT_NE(s.message().find("telemetry.domain"), std::string::npos) << s.message();
 }
 
+TEST(Participant, TheHighestDomainIdStartsOnEveryTransport) {
+  // Domain 232 is the last the RTPS port mapping allows, with room for participants 0..62
+  // only: the loopback transport's unicast discovery must not name ports past 65535 (Fast DDS
+  // then refuses the participant with "Calculated port number is too high"). Nothing is sent
+  // to anyone: no test takes domains above 229 (private_domain.hpp).
+  namespace fdds = eprosima::fastdds::dds;
+  for (const auto kind : {lode::TransportSpec::Kind::loopback, lode::TransportSpec::Kind::udp_loopback,
+                          lode::TransportSpec::Kind::shm}) {
+    fdds::DomainParticipantQos qos = fdds::PARTICIPANT_QOS_DEFAULT;
+    ParticipantOptions options;
+    options.name = "highest-domain";
+    options.domain = 232;
+    options.transport.kind = kind;
+    ASSERT_TRUE(lode::dds::configure_participant_qos(options, qos));
+    auto* factory = fdds::DomainParticipantFactory::get_instance();
+    fdds::DomainParticipant* participant = factory->create_participant(232, qos);
+    EXPECT_NE(participant, nullptr) << "transport " << lode::to_string(kind);
+    if (participant) factory->delete_participant(participant);
+  }
+}
+
 TEST(Participant, LoopbackIsHermetic) {
   eprosima::fastdds::dds::DomainParticipantQos qos;
   ParticipantOptions options;

@@ -6,6 +6,7 @@
 #include <arpa/inet.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdlib>
 #include <limits>
@@ -40,6 +41,17 @@ namespace {
 // dozen datagrams on lo every announcement period cost nothing.
 constexpr std::uint32_t kLoopbackPeersRange = 64;
 constexpr std::uint32_t kNetworkPeersRange = 16;
+
+/// `wanted` initial peers per address, or fewer where the highest domains leave no room: the
+/// RTPS port of participant p in domain d is 7400 + 250 d + 11 + 2 p (user unicast, the
+/// highest of its ports), and a port past 65535 makes Fast DDS refuse the participant. In
+/// domain 232 that is participants 0..62.
+std::uint32_t peers_range(int domain, std::uint32_t wanted) {
+  constexpr int kHighestPort = 65535, kPortBase = 7400, kDomainGain = 250, kUserUnicastOffset = 11,
+                kParticipantGain = 2;
+  const int room = (kHighestPort - kPortBase - kDomainGain * domain - kUserUnicastOffset) / kParticipantGain + 1;
+  return std::min(wanted, static_cast<std::uint32_t>(std::max(room, 1)));
+}
 constexpr std::int32_t kAnnouncementPeriodS = 1;
 // Shared memory between the processes of one host. A best-effort sample is lost when the
 // reader's port queue is full (its process did not run) or the writer's segment has no free
@@ -151,7 +163,7 @@ Status configure_participant_qos(const ParticipantOptions& options, fdds::Domain
     auto udp = std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>();
     udp->receiveBufferSize = kUdpReceiveBufferBytes;
     udp->interfaceWhiteList.emplace_back("127.0.0.1");
-    udp->maxInitialPeersRange = kLoopbackPeersRange;
+    udp->maxInitialPeersRange = peers_range(options.domain, kLoopbackPeersRange);
     transport.user_transports.push_back(udp);
     // Unicast discovery only: an explicit metatraffic locator means no SPDP multicast.
     builtin.initialPeersList.push_back(udp_locator(localhost, 0));
@@ -180,7 +192,7 @@ Status configure_participant_qos(const ParticipantOptions& options, fdds::Domain
     case TransportSpec::Kind::network: {
       auto udp = std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>();
       udp->receiveBufferSize = kUdpReceiveBufferBytes;
-      udp->maxInitialPeersRange = kNetworkPeersRange;
+      udp->maxInitialPeersRange = peers_range(options.domain, kNetworkPeersRange);
       std::vector<rtps::Locator_t> interface_locators;
       for (std::size_t i = 0; i < spec.interfaces.size(); ++i) {
         std::uint8_t ip[4];
