@@ -8,7 +8,10 @@ capacity, as consecutive 32-bit words. A process that opens the port while its c
 sleeps that period before it tries again. The words are found by their pattern, not by an
 offset, so padding before them does not matter.
 
-usage: shm_port_settings.py DOMAIN
+Only ports created (or written) at or after SINCE (seconds since the epoch) when it is given:
+a port file outlives a process that died, and its settings are that process's.
+
+usage: shm_port_settings.py DOMAIN [SINCE]
 """
 import glob
 import os
@@ -32,10 +35,14 @@ def settings(path, port):
 
 def main():
     domain = int(sys.argv[1])
+    since = float(sys.argv[2]) if len(sys.argv) > 2 else 0.0
     first, last = 7400 + 250 * domain, 7400 + 250 * (domain + 1)
     for path in sorted(glob.glob("/dev/shm/fastrtps_port*")):
         name = os.path.basename(path)[len("fastrtps_port"):]
         if not name.isdigit() or not first <= int(name) < last:
+            continue
+        status = os.stat(path)
+        if max(status.st_mtime, status.st_ctime) < since:
             continue
         found = settings(path, int(name))
         print(name, *(found if found else ("unknown", "unknown")))

@@ -36,6 +36,7 @@ Status Bridge::open(const ParticipantOptions& options) {
 
   fdds::DomainParticipantQos qos = fdds::PARTICIPANT_QOS_DEFAULT;
   if (Status s = configure_participant_qos(options, qos); !s) return s;
+  domain_ = options.domain;
   // The listener must be there from creation on: it is how command senders are identified.
   participant_ = fdds::DomainParticipantFactory::get_instance()->create_participant(
       static_cast<fdds::DomainId_t>(options.domain), qos, &watcher_, fdds::StatusMask::none());
@@ -210,6 +211,7 @@ void Bridge::publisher_loop() {
       if (run_stats_.wake_latency.count() > 0) aim = capture_aim_.next();
       publish_events();
       if (clock::now() >= next_timing) {
+        note_namesakes();
         publish_timing();
         next_timing += timing_period;
         if (next_timing < clock::now()) next_timing = clock::now() + timing_period;
@@ -229,6 +231,25 @@ void Bridge::publisher_loop() {
   std::lock_guard lock(publish_mutex_);  // what the last cycles left behind
   drain_rings();
   publish_events();
+}
+
+void Bridge::note_namesakes() {
+  if (!namesakes_changed_.exchange(false, std::memory_order_acq_rel)) return;
+  const std::string topics = "'" + pipeline_.name() + "'";
+  std::string text;
+  {
+    std::lock_guard lock(peers_mutex_);
+    text = namesakes_ > 0
+               ? "another pipeline named " + topics + " is live on DDS domain " + std::to_string(domain_) + ": " +
+                     namesake_text_ +
+                     ". Subscribers get both pipelines' samples on the same topics, and this pipeline refuses "
+                     "commands while it is there: give one of them another `pipeline:` name or "
+                     "`telemetry.domain`"
+               : "no other pipeline named " + topics + " is live on DDS domain " + std::to_string(domain_) +
+                     " any more: commands are accepted again";
+  }
+  events_.post(run_stats_.last_time_ns.load(std::memory_order_relaxed),
+               run_stats_.cycles.load(std::memory_order_relaxed), "warning", text);
 }
 
 void Bridge::await_capture(const CaptureAim::Aim& aim, std::chrono::steady_clock::time_point wake_by,

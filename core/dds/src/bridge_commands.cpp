@@ -42,6 +42,19 @@ void Bridge::handle_command(const lode::msg::Command& command, const fdds::Sampl
   rtps::GuidPrefix_t sender = info.sample_identity.writer_guid().guidPrefix;
   if (sender == rtps::GuidPrefix_t::unknown()) sender = rtps::iHandle2GUID(info.publication_handle).guidPrefix;
 
+  {
+    // Another pipeline of this name would take the same command: neither may.
+    std::unique_lock lock(peers_mutex_);
+    if (namesakes_ > 0) {
+      const std::string message = "refused: another pipeline named '" + pipeline_.name() +
+                                  "' is live on DDS domain " + std::to_string(domain_) + " (" + namesake_text_ +
+                                  ") and would take this command too; give one of them another `pipeline:` "
+                                  "name or `telemetry.domain`";
+      lock.unlock();
+      refuse(command, message);
+      return;
+    }
+  }
   const CommandAccess& access = spec_.commands;
   const bool open_to_all = access.allow_participants.empty() && access.allow_hosts.empty();
   // Discovery announces a participant before its endpoints match; the short wait only
@@ -67,20 +80,11 @@ void Bridge::handle_command(const lode::msg::Command& command, const fdds::Sampl
     std::string fields;
     if (!name_ok) fields = "telemetry.commands.allow_participants";
     if (!host_ok) fields += std::string(fields.empty() ? "" : " and ") + "telemetry.commands.allow_hosts";
-    ControlReply reply;
-    reply.id = command.id();
-    reply.ok = false;
-    reply.message = known ? "refused: participant '" + peer.name + "' from hosts [" + join(hosts) +
+    refuse(command, known ? "refused: participant '" + peer.name + "' from hosts [" + join(hosts) +
                                 "] is not allowed to command this pipeline (see " + fields + ")"
                           : "refused: the sender (calling itself '" + command.client() +
                                 "') was not discovered as a participant, so telemetry.commands.allow_* "
-                                "cannot be checked";
-    commands_refused_.fetch_add(1, std::memory_order_relaxed);
-    events_.post_limited(run_stats_.last_time_ns.load(std::memory_order_relaxed),
-                         run_stats_.cycles.load(std::memory_order_relaxed), "command_refused",
-                 command.kind() + " " + command.block() + (command.name().empty() ? "" : "." + command.name()) +
-                     ": " + reply.message);
-    write_reply(command, reply);
+                                "cannot be checked");
     return;
   }
 
@@ -89,6 +93,19 @@ void Bridge::handle_command(const lode::msg::Command& command, const fdds::Sampl
   commands_accepted_.fetch_add(1, std::memory_order_relaxed);
   ControlReply reply = control_->handle(request);
   reply.id = command.id();
+  write_reply(command, reply);
+}
+
+void Bridge::refuse(const lode::msg::Command& command, const std::string& message) {
+  ControlReply reply;
+  reply.id = command.id();
+  reply.ok = false;
+  reply.message = message;
+  commands_refused_.fetch_add(1, std::memory_order_relaxed);
+  events_.post_limited(run_stats_.last_time_ns.load(std::memory_order_relaxed),
+                       run_stats_.cycles.load(std::memory_order_relaxed), "command_refused",
+                       command.kind() + " " + command.block() + (command.name().empty() ? "" : "." + command.name()) +
+                           ": " + message);
   write_reply(command, reply);
 }
 

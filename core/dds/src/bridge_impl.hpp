@@ -177,6 +177,7 @@ class Bridge final : public TelemetryBridge {
     if (info.status == rtps::ParticipantDiscoveryInfo::REMOVED_PARTICIPANT ||
         info.status == rtps::ParticipantDiscoveryInfo::DROPPED_PARTICIPANT) {
       peers_.erase(data.m_guid.guidPrefix);
+      recount_namesakes();
       return;
     }
     Peer peer;
@@ -193,6 +194,7 @@ class Bridge final : public TelemetryBridge {
     for (const auto& locator : data.metatraffic_locators.unicast) add(locator);
     for (const auto& locator : data.default_locators.unicast) add(locator);
     peers_[data.m_guid.guidPrefix] = std::move(peer);
+    recount_namesakes();
     peers_changed_.notify_all();
   }
 
@@ -223,6 +225,28 @@ class Bridge final : public TelemetryBridge {
     return writer;
   }
 
+  /// Other live pipelines of this one's name on this domain (another rig or user started the
+  /// same configuration): their topics are this pipeline's topics, so subscribers get both
+  /// pipelines' samples mixed, and a command would reach both. Under peers_mutex_.
+  void recount_namesakes() {
+    std::size_t count = 0;
+    std::string who;
+    for (const auto& [prefix, peer] : peers_) {
+      const auto name = pipeline_of_participant(peer.name);
+      if (!name || *name != pipeline_.name()) continue;
+      ++count;
+      std::vector<std::string> where = peer.hosts;
+      if (peer.shared_memory) where.emplace_back("shared memory");
+      who += (who.empty() ? "" : "; ") + peer.name + " [" + join(where) + "]";
+    }
+    if (count == namesakes_) return;
+    namesakes_ = count;
+    namesake_text_ = who;
+    namesakes_changed_.store(true, std::memory_order_release);
+  }
+  /// Posts a warning event when namesakes came or all went (publisher thread).
+  void note_namesakes();
+
   Status publish_signal_info();
   void publisher_loop();
   void command_loop();
@@ -234,6 +258,8 @@ class Bridge final : public TelemetryBridge {
   void publish_events();
   void handle_command(const lode::msg::Command& command, const fdds::SampleInfo& info);
   void write_reply(const lode::msg::Command& command, const ControlReply& reply);
+  /// Replies "not done" with `message` and counts it (a refused-command event, rate limited).
+  void refuse(const lode::msg::Command& command, const std::string& message);
   void note_malformed_commands();
 
   const Pipeline& pipeline_;
@@ -274,6 +300,10 @@ class Bridge final : public TelemetryBridge {
   std::mutex peers_mutex_;
   std::condition_variable peers_changed_;
   std::map<rtps::GuidPrefix_t, Peer> peers_;
+  std::size_t namesakes_ = 0;   ///< recount_namesakes(), under peers_mutex_
+  std::string namesake_text_;   ///< who they are, under peers_mutex_
+  std::atomic<bool> namesakes_changed_{false};
+  int domain_ = 0;
 
   std::atomic<std::uint64_t> published_{0};
   std::atomic<std::uint64_t> write_failures_{0};
