@@ -35,6 +35,8 @@ int echo(const Args& args) {
   const bool quiet = args.has_flag("--quiet");
   std::vector<double> latencies_us;
   if (latency) latencies_us.reserve(1 << 20);
+  std::string followed;  // the pipeline of the topic echoed
+  bool warned_namesakes = false;
 
   if (what == "events" || what == "timing" || what.ends_with("/events") || what.ends_with("/timing")) {
     const bool events = what.ends_with("events");
@@ -91,6 +93,8 @@ int echo(const Args& args) {
     }
     const dds::SignalMeta m = *meta;
     watch.follow(m.pipeline);
+    followed = m.pipeline;
+    warned_namesakes = warn_namesakes(*client, m.pipeline, "echo");
     std::string header = "# " + m.topic + "  " + std::to_string(m.rate_hz) + " Hz\n# cycle t[s]";
     for (std::size_t k = 0; k < m.names.size(); ++k)
       header += " " + m.names[k] + unit_suffix(k < m.units.size() ? m.units[k] : "");
@@ -154,6 +158,7 @@ int echo(const Args& args) {
   else
     std::fprintf(stderr, "lode echo: %llu samples (%s)\n", static_cast<unsigned long long>(received), why.c_str());
   report_malformed(*client, "echo");
+  if (!warned_namesakes && !followed.empty()) warn_namesakes(*client, followed, "echo");
   if (latency && !latencies_us.empty()) {
     std::sort(latencies_us.begin(), latencies_us.end());
     auto q = [&](double p) { return latencies_us[static_cast<std::size_t>(p * static_cast<double>(latencies_us.size() - 1))]; };

@@ -162,6 +162,7 @@ int record_topics(const Args& args) {
   }
   std::fprintf(stderr, "lode record: wrote %s (%s)\n", path.c_str(), why.c_str());
   report_malformed(*client, "record");
+  for (const auto& pipeline : pipelines_followed) warn_namesakes(*client, pipeline, "record");
   return rc;
 }
 

@@ -169,6 +169,17 @@ void report_malformed(const dds::Client& client, const char* command) {
                  "a foreign or broken writer on the domain)\n", command, static_cast<unsigned long long>(n));
 }
 
+bool warn_namesakes(const dds::Client& client, const std::string& pipeline, const char* command) {
+  const std::size_t live = client.namesakes(pipeline);
+  if (live < 2) return false;
+  std::fprintf(stderr,
+               "lode %s: warning: %zu pipelines named '%s' are live on this domain (one configuration run on two "
+               "rigs, or by two users): their samples arrive mixed on the same topics, and they refuse commands "
+               "until one leaves\n",
+               command, live, pipeline.c_str());
+  return true;
+}
+
 milliseconds wait_option(const Args& args, double fallback_s) {
   return milliseconds(std::llround(args.number("--wait", fallback_s) * 1e3));
 }

@@ -32,6 +32,10 @@ std::unique_ptr<dds::Client> make_client(const Args& args, const std::string& ro
 /// decode (nothing printed when none were).
 void report_malformed(const dds::Client& client, const char* command);
 
+/// Says on stderr, and returns true, when more than one live pipeline goes by `pipeline`'s
+/// name on the domain: their samples arrive mixed on the same topics.
+bool warn_namesakes(const dds::Client& client, const std::string& pipeline, const char* command);
+
 /// --wait in milliseconds.
 milliseconds wait_option(const Args& args, double fallback_s);
 

@@ -2,7 +2,8 @@
 # Two pipelines of one name on one DDS domain (two rigs, or two users, started the same
 # configuration): their topics are the same topics, so a command would reach both. While the
 # second runs, the first refuses commands and says why; when it leaves, commands are accepted
-# again; both changes are warning events. Two runtime directories stand for two hosts (on one
+# again; both changes are warning events, and `lode echo` warns that the samples it prints
+# come from both. Two runtime directories stand for two hosts (on one
 # host and one runtime directory the local control socket already refuses the second run).
 # usage: namesake_test.sh LODE SRC
 set -u
@@ -29,6 +30,9 @@ PIDS+=("$first")
 "$LODE" echo kf.pose --domain "$DOMAIN" --count 1 --wait 30 >/dev/null 2>"$TMP/up.err"
 check_rc "the first pipeline is up" 0 $? "$TMP/up.err"
 set_until "^ok: ref.offset.x" 1e-6 && ok "alone, it takes a command" || bad "alone: $(cat "$TMP/set.out")"
+"$LODE" echo kf.pose --domain "$DOMAIN" --count 100 --wait 10 >/dev/null 2>"$TMP/alone.err"
+grep -q "pipelines named" "$TMP/alone.err" && bad "alone, lode echo warned: $(cat "$TMP/alone.err")" ||
+  ok "alone, lode echo does not warn"
 
 XDG_RUNTIME_DIR=$TMP/other_host "$LODE" run "$TMP/p.yaml" --clock real --duration 120 --quiet >"$TMP/second.out" 2>&1 &
 second=$!
@@ -38,6 +42,10 @@ if set_until "refused: another pipeline named 'kawato_planar' is live on DDS dom
 else
   bad "with a namesake live: $(cat "$TMP/set.out")"
 fi
+
+"$LODE" echo kf.pose --domain "$DOMAIN" --count 100 --wait 10 >/dev/null 2>"$TMP/echo.err"
+contains "lode echo warns that two pipelines of that name are live" "$TMP/echo.err" \
+  "warning: 2 pipelines named 'kawato_planar' are live on this domain"
 
 kill -TERM "$second"
 wait "$second"

@@ -3,6 +3,8 @@
 // bridges it has discovered, and resolving a user's name for a signal against them.
 #include <fastdds/rtps/participant/ParticipantDiscoveryInfo.h>
 
+#include <algorithm>
+
 #include "client_impl.hpp"
 
 namespace lode::dds::client_detail {
@@ -54,6 +56,12 @@ std::set<std::string> PipelineParticipants::pipelines() const {
   std::set<std::string> out;
   for (const auto& [prefix, pipeline] : live_) out.insert(pipeline);
   return out;
+}
+
+std::size_t PipelineParticipants::count(const std::string& pipeline) const {
+  std::lock_guard lock(mutex_);
+  return static_cast<std::size_t>(
+      std::count_if(live_.begin(), live_.end(), [&](const auto& entry) { return entry.second == pipeline; }));
 }
 
 std::vector<SignalMeta> ClientImpl::signals(std::chrono::milliseconds wait) {

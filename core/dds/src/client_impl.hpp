@@ -104,6 +104,8 @@ class PipelineParticipants final : public fdds::DomainParticipantListener {
  public:
   void on_participant_discovery(fdds::DomainParticipant*, eprosima::fastrtps::rtps::ParticipantDiscoveryInfo&& info) override;
   std::set<std::string> pipelines() const;
+  /// Live participants that are the bridge of a pipeline of this name.
+  std::size_t count(const std::string& pipeline) const;
 
  private:
   mutable std::mutex mutex_;
@@ -156,6 +158,9 @@ class ClientImpl final : public Client {
   // client_discovery.cpp
   std::vector<SignalMeta> signals(std::chrono::milliseconds wait) override;
   std::vector<std::string> pipelines(std::chrono::milliseconds wait) override;
+  [[nodiscard]] std::size_t namesakes(const std::string& pipeline) const override {
+    return participants_.count(pipeline);
+  }
   Expected<SignalMeta> resolve(const std::string& what, std::chrono::milliseconds wait) override;
 
   // client_subscriptions.cpp

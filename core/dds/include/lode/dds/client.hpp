@@ -80,6 +80,9 @@ class Client {
                                          std::chrono::milliseconds timeout) = 0;
   /// Pipelines that have published SignalInfo.
   virtual std::vector<std::string> pipelines(std::chrono::milliseconds wait) = 0;
+  /// How many live pipelines (their bridges' participants) go by `pipeline`'s name: more than
+  /// one means two rigs or users run one configuration on this domain and share its topics.
+  [[nodiscard]] virtual std::size_t namesakes(const std::string& pipeline) const = 0;
   /// Samples dropped so far because their bytes did not decode as the topic's type (a
   /// foreign or broken writer on the domain): never handed to a callback.
   [[nodiscard]] virtual std::uint64_t malformed_samples() const = 0;
