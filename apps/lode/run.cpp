@@ -96,6 +96,10 @@ class StatusLine {
     last_print_ = now;
     print(false);
   }
+  /// Clears the line in place on a terminal, so that a message printed next is not mixed into it.
+  void clear() const {
+    if (!quiet_ && tty_) std::fprintf(stderr, "\r%-150s\r", "");
+  }
   void print(bool final_line) const {
     if (quiet_) return;
     const std::string line = text();
@@ -200,14 +204,19 @@ int run(const Args& args) {
   std::size_t event_cursor = 0;
   std::uint64_t faults_seen = 0;
   const auto follow_events = [&] {
-    if (!echo_events && !notifier.active()) return;
     for (const Event& e : events.since(event_cursor)) {
       const bool fault = e.kind == "fault" || e.kind == "error";
       if (fault || e.kind == "health") ++faults_seen;
-      if (!echo_events || e.kind == "start" || e.kind == "stop") continue;  // the start line and the summary say those
+      // On a terminal too, at once: another pipeline of this name on the domain (its commands
+      // are refused meanwhile). Everything else a terminal has in the status line, the RT
+      // log's own lines or the summary.
+      const bool namesake = e.kind == "namesake";
+      if (!(echo_events || namesake) || e.kind == "start" || e.kind == "stop") continue;  // the start line and the summary say those
       const Severity severity = fault ? Severity::error
-                                : e.kind == "warning" || e.kind == "health" || e.kind == "dropped" ? Severity::warning
-                                                                                                     : Severity::info;
+                                : e.kind == "warning" || e.kind == "health" || e.kind == "dropped" || namesake
+                                    ? Severity::warning
+                                    : Severity::info;
+      if (!echo_events) status.clear();
       say(stderr, severity, "lode: %s: %s\n", e.kind.c_str(), e.text.c_str());
     }
   };

@@ -2,9 +2,10 @@
 # Two pipelines of one name on one DDS domain (two rigs, or two users, started the same
 # configuration): their topics are the same topics, so a command would reach both. While the
 # second runs, the first refuses commands and says why; when it leaves, commands are accepted
-# again; both changes are warning events, and `lode echo` warns that the samples it prints
-# come from both. Two runtime directories stand for two hosts (on one
-# host and one runtime directory the local control socket already refuses the second run).
+# again; both changes are "namesake" events, which lode run prints as they happen; and
+# `lode echo` warns that the samples it prints come from both. Two runtime directories stand
+# for two hosts (on one host and one runtime directory the local control socket already
+# refuses the second run).
 # usage: namesake_test.sh LODE SRC
 set -u
 LODE=$1 SRC=$2
@@ -56,15 +57,17 @@ set_until "^ok: ref.offset.x" 3e-6 && ok "once it has left, commands are taken a
 kill -TERM "$first"
 wait "$first"
 check_rc "the first pipeline stops cleanly" 0 $? "$TMP/first.out"
+contains "lode run printed it on stderr (with --quiet too)" "$TMP/first.out" \
+  "lode: namesake: another pipeline named 'kawato_planar' is live on DDS domain $DOMAIN"
 $PY - "$TMP/first.json" >"$TMP/warnings.txt" <<'PY'
 import json, sys
 for e in json.load(open(sys.argv[1]))["events"]:
-    if e["kind"] == "warning":
+    if e["kind"] == "namesake":
         print(e["text"])
 PY
-contains "a warning event named the namesake" "$TMP/warnings.txt" \
+contains "a namesake event named the other pipeline" "$TMP/warnings.txt" \
   "another pipeline named 'kawato_planar' is live on DDS domain $DOMAIN: lode-run/kawato_planar@"
-contains "a warning event said when it left" "$TMP/warnings.txt" \
+contains "a namesake event said when it left" "$TMP/warnings.txt" \
   "no other pipeline named 'kawato_planar' is live on DDS domain $DOMAIN any more"
 
 [ $fail -eq 0 ] && echo PASS

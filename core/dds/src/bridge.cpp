@@ -249,7 +249,7 @@ void Bridge::note_namesakes() {
                      " any more: commands are accepted again";
   }
   events_.post(run_stats_.last_time_ns.load(std::memory_order_relaxed),
-               run_stats_.cycles.load(std::memory_order_relaxed), "warning", text);
+               run_stats_.cycles.load(std::memory_order_relaxed), "namesake", text);
 }
 
 void Bridge::await_capture(const CaptureAim::Aim& aim, std::chrono::steady_clock::time_point wake_by,

@@ -244,7 +244,7 @@ class Bridge final : public TelemetryBridge {
     namesake_text_ = who;
     namesakes_changed_.store(true, std::memory_order_release);
   }
-  /// Posts a warning event when namesakes came or all went (publisher thread).
+  /// Posts a "namesake" event when namesakes came or all went (publisher thread).
   void note_namesakes();
 
   Status publish_signal_info();
