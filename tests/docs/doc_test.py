@@ -6,10 +6,6 @@ Every fenced block whose info string starts with `sh` must say what happens to i
     ```sh runnable            run by this test, in order with the file's other blocks
     ```sh runnable exit=2     run in a subshell; its last command must exit 2 (a refused
                               config). A `cd` or `export` inside it does not carry on.
-    ```sh runnable retry=1    a real-time example whose timing a shared host can break (a
-                              board emulator that the hypervisor stalls for longer than the
-                              loop's conversion timeout): its file runs once more when it
-                              fails, and the first failure is printed all the same.
     ```sh not-run: REASON     shown only (installs packages, needs a VME crate, ...)
 
 A bare ```sh block is an error: a command nobody runs is a command that goes stale.
@@ -76,8 +72,7 @@ def fenced_blocks(path, display):
 
 
 def classify(block):
-    """Returns ('run', expected_exit, retries), ('skip', reason), or ('error', message); None if
-    not shell."""
+    """Returns ('run', expected_exit), ('skip', reason), or ('error', message); None if not shell."""
     words = block.info.split(None, 1)
     if not words or words[0] not in SHELL_LANGUAGES:
         return None
@@ -87,9 +82,9 @@ def classify(block):
         if len(reason) < 8:
             return ("error", "`not-run:` needs a reason (what the reader needs that a test cannot have)")
         return ("skip", reason)
-    m = re.fullmatch(r"runnable(?:\s+exit=(\d+))?(?:\s+retry=(\d))?", rest)
+    m = re.fullmatch(r"runnable(?:\s+exit=(\d+))?", rest)
     if m:
-        return ("run", int(m[1] or 0), int(m[2] or 0))
+        return ("run", int(m[1] or 0))
     return ("error", f"shell block must be marked `{words[0]} runnable` or `{words[0]} not-run: REASON` "
                      f"(info string was {block.info!r})")
 
@@ -232,7 +227,7 @@ def main():
     problems, plan = [], []
     for path in files:
         display = os.path.relpath(path, source)
-        runnable, skipped, retries = [], 0, 0
+        runnable, skipped = [], 0
         for block in fenced_blocks(path, display):
             kind = classify(block)
             if kind is None:
@@ -243,8 +238,7 @@ def main():
                 skipped += 1
             else:
                 runnable.append((block, kind[1]))
-                retries = max(retries, kind[2])
-        plan.append((display, runnable, skipped, retries))
+        plan.append((display, runnable, skipped))
     if problems:
         print("\n".join(problems))
         print(f"doc-test: {len(problems)} shell blocks are neither runnable nor given a reason")
@@ -253,24 +247,18 @@ def main():
     domain, _lock = take_private_domain()
     print(f"doc-test: private DDS domain {domain}")
     failed = 0
-    for display, runnable, skipped, retries in plan:
+    for display, runnable, skipped in plan:
         if not runnable:
             print(f"ok: {display}: no runnable blocks ({skipped} shown only)")
             continue
         rc, output = run_file(display, runnable, source, build, domain)
-        for attempt in range(2, retries + 2):
-            if rc == 0:
-                break
-            print(f"retry: {display} failed (exit {rc}), run again (attempt {attempt}); the failure:")
-            print(output.rstrip())
-            rc, output = run_file(display, runnable, source, build, domain)
         if rc == 0:
             print(f"ok: {display}: {len(runnable)} blocks run ({skipped} shown only)")
         else:
             failed += 1
             print(f"FAIL: {display} (exit {rc}); its output:")
             print(output.rstrip())
-    total = sum(len(r) for _, r, _, _ in plan)
+    total = sum(len(r) for _, r, _ in plan)
     print(f"doc-test: {total} blocks in {len(plan)} files, {failed} files failed")
     return 1 if failed else 0
 
