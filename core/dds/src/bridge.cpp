@@ -235,17 +235,15 @@ void Bridge::publisher_loop() {
 
 void Bridge::note_namesakes() {
   if (!namesakes_changed_.exchange(false, std::memory_order_acq_rel)) return;
-  const std::string topics = "'" + pipeline_.name() + "'";
   std::string text;
   {
     std::lock_guard lock(peers_mutex_);
     text = namesakes_ > 0
-               ? "another pipeline named " + topics + " is live on DDS domain " + std::to_string(domain_) + ": " +
-                     namesake_text_ +
+               ? namesake_live() + ": " + namesake_text_ +
                      ". Subscribers get both pipelines' samples on the same topics, and this pipeline refuses "
                      "commands while it is there: give one of them another `pipeline:` name or "
                      "`telemetry.domain`"
-               : "no other pipeline named " + topics + " is live on DDS domain " + std::to_string(domain_) +
+               : "no other pipeline named '" + pipeline_.name() + "' is live on DDS domain " + std::to_string(domain_) +
                      " any more: commands are accepted again";
   }
   events_.post(run_stats_.last_time_ns.load(std::memory_order_relaxed),

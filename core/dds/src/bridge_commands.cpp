@@ -46,8 +46,7 @@ void Bridge::handle_command(const lode::msg::Command& command, const fdds::Sampl
     // Another pipeline of this name would take the same command: neither may.
     std::unique_lock lock(peers_mutex_);
     if (namesakes_ > 0) {
-      const std::string message = "refused: another pipeline named '" + pipeline_.name() +
-                                  "' is live on DDS domain " + std::to_string(domain_) + " (" + namesake_text_ +
+      const std::string message = "refused: " + namesake_live() + " (" + namesake_text_ +
                                   ") and would take this command too; give one of them another `pipeline:` "
                                   "name or `telemetry.domain`";
       lock.unlock();
@@ -75,12 +74,10 @@ void Bridge::handle_command(const lode::msg::Command& command, const fdds::Sampl
   host_ok = host_ok || (peer.shared_memory && contains(access.allow_hosts, "127.0.0.1"));
 
   if (!open_to_all && !(known && name_ok && host_ok)) {
-    std::vector<std::string> hosts = peer.hosts;
-    if (peer.shared_memory) hosts.emplace_back("shared memory");
     std::string fields;
     if (!name_ok) fields = "telemetry.commands.allow_participants";
     if (!host_ok) fields += std::string(fields.empty() ? "" : " and ") + "telemetry.commands.allow_hosts";
-    refuse(command, known ? "refused: participant '" + peer.name + "' from hosts [" + join(hosts) +
+    refuse(command, known ? "refused: participant '" + peer.name + "' from hosts [" + peer.where() +
                                 "] is not allowed to command this pipeline (see " + fields + ")"
                           : "refused: the sender (calling itself '" + command.client() +
                                 "') was not discovered as a participant, so telemetry.commands.allow_* "

@@ -51,12 +51,21 @@ struct Peer {
   std::string name;
   std::vector<std::string> hosts;  ///< IPv4 addresses of its unicast locators
   bool shared_memory = false;      ///< reachable over shared memory, i.e. on this host
+
+  /// Where it is reachable, for messages: "192.168.10.6, shared memory".
+  [[nodiscard]] std::string where() const;
 };
 
 inline std::string join(const std::vector<std::string>& items) {
   std::string out;
   for (const auto& item : items) out += (out.empty() ? "" : ", ") + item;
   return out;
+}
+
+inline std::string Peer::where() const {
+  std::vector<std::string> places = hosts;
+  if (shared_memory) places.emplace_back("shared memory");
+  return join(places);
 }
 
 inline bool contains(const std::vector<std::string>& items, const std::string& item) {
@@ -235,9 +244,7 @@ class Bridge final : public TelemetryBridge {
       const auto name = pipeline_of_participant(peer.name);
       if (!name || *name != pipeline_.name()) continue;
       ++count;
-      std::vector<std::string> where = peer.hosts;
-      if (peer.shared_memory) where.emplace_back("shared memory");
-      who += (who.empty() ? "" : "; ") + peer.name + " [" + join(where) + "]";
+      who += (who.empty() ? "" : "; ") + peer.name + " [" + peer.where() + "]";
     }
     if (count == namesakes_) return;
     namesakes_ = count;
@@ -246,6 +253,10 @@ class Bridge final : public TelemetryBridge {
   }
   /// Posts a "namesake" event when namesakes came or all went (publisher thread).
   void note_namesakes();
+  /// "another pipeline named 'P' is live on DDS domain D": the event's and a refusal's start.
+  [[nodiscard]] std::string namesake_live() const {
+    return "another pipeline named '" + pipeline_.name() + "' is live on DDS domain " + std::to_string(domain_);
+  }
 
   Status publish_signal_info();
   void publisher_loop();
