@@ -16,9 +16,16 @@ void Envelope::add(Limit limit) {
 }
 
 void Envelope::flatten() {
-  symmetric_bounds_.clear();
-  bounds_.clear();
+  symmetric_pairs_.clear();
+  bound_pairs_.clear();
+  rate_pairs_.clear();
   rates_.clear();
+  struct Element {
+    const double* value;
+    double min, max;
+  };
+  std::vector<Element> symmetric, bounded;
+  std::vector<std::pair<RateBound, double>> rated;
   for (std::size_t l = 0; l < limits_.size(); ++l) {
     const Limit& limit = limits_[l];
     State& state = states_[l];
@@ -28,12 +35,29 @@ void Envelope::flatten() {
                                                     : std::numeric_limits<double>::infinity();
     for (std::size_t i = 0; i < state.previous.size(); ++i) {
       const double min = std::max(limit.min[i], -widest), max = std::min(limit.max[i], widest);
-      if (min == -max) symmetric_bounds_.push_back({limit.data + i, max});
-      else bounds_.push_back({limit.data + i, min, max});
+      (min == -max ? symmetric : bounded).push_back({limit.data + i, min, max});
       if (limit.max_rate[i] < std::numeric_limits<double>::infinity())
-        rates_.push_back({limit.data + i, &state.previous[i], limit.max_rate[i]});
+        rated.push_back({{limit.data + i, &state.previous[i]}, limit.max_rate[i]});
     }
   }
+  // Element k with element k + 1, the last of an odd count with itself.
+  const auto partner = [](std::size_t k, std::size_t n) { return k + 1 < n ? k + 1 : k; };
+  for (std::size_t k = 0; k < symmetric.size(); k += 2) {
+    const Element& a = symmetric[k];
+    const Element& b = symmetric[partner(k, symmetric.size())];
+    symmetric_pairs_.push_back({a.value, b.value, Pair{a.max, b.max}});
+  }
+  for (std::size_t k = 0; k < bounded.size(); k += 2) {
+    const Element& a = bounded[k];
+    const Element& b = bounded[partner(k, bounded.size())];
+    bound_pairs_.push_back({a.value, b.value, Pair{a.min, b.min}, Pair{a.max, b.max}});
+  }
+  for (std::size_t k = 0; k < rated.size(); k += 2) {
+    const auto& [a, a_max] = rated[k];
+    const auto& [b, b_max] = rated[partner(k, rated.size())];
+    rate_pairs_.push_back({a.value, b.value, a.previous, b.previous, Pair{a_max, b_max}});
+  }
+  for (const auto& r : rated) rates_.push_back(r.first);
   states_settled_ = false;
 }
 
@@ -56,18 +80,27 @@ bool Envelope::breach(std::size_t limit, std::size_t element, Breach what, doubl
 }
 
 bool Envelope::check(const Tick& tick) noexcept {
-  for (const SymmetricBound& b : symmetric_bounds_)
-    if (!(std::abs(*b.value) <= b.max)) return check_each(tick);
-  for (const Bound& b : bounds_) {
-    const double v = *b.value;
-    if (!((v >= b.min) & (v <= b.max))) return check_each(tick);
+  // |v|: the sign bit cleared.
+  constexpr PairMask kMagnitude = {0x7fffffffffffffff, 0x7fffffffffffffff};
+  PairMask inside = {-1, -1};
+  for (const SymmetricPair& b : symmetric_pairs_) {
+    const Pair v = {*b.first, *b.second};
+    inside &= reinterpret_cast<Pair>(reinterpret_cast<PairMask>(v) & kMagnitude) <= b.max;
   }
-  // Every value is inside its bounds. A rate within its limit here is within it in
-  // check_limit, which computes it the same way where it checks one (a previous value, both
-  // finite); anything else (no previous value yet, a non-finite one: a NaN or infinite rate)
-  // is not plainly inside, and check_each() decides.
-  for (const RateBound& r : rates_)
-    if (!(std::abs(*r.value - *r.previous) / tick.dt_s <= r.max_rate)) return check_each(tick);
+  for (const BoundPair& b : bound_pairs_) {
+    const Pair v = {*b.first, *b.second};
+    inside &= (v >= b.min) & (v <= b.max);
+  }
+  // A rate within its limit here is within it in check_limit, which computes it the same way
+  // where it checks one (a previous value, both finite); anything else (no previous value
+  // yet, a non-finite one: a NaN or infinite rate) is not plainly inside, and check_each()
+  // decides.
+  const Pair dt = {tick.dt_s, tick.dt_s};
+  for (const RatePair& r : rate_pairs_) {
+    const Pair change = Pair{*r.first, *r.second} - Pair{*r.previous_first, *r.previous_second};
+    inside &= reinterpret_cast<Pair>(reinterpret_cast<PairMask>(change) & kMagnitude) / dt <= r.max_rate;
+  }
+  if (!(inside[0] & inside[1])) return check_each(tick);
   // What check_limit leaves behind when every value is inside, and finite where invalid values
   // have a budget (previous values are read only where a rate is limited).
   for (const RateBound& r : rates_) *r.previous = *r.value;

@@ -149,6 +149,7 @@ Status SimBoard::configure(ConfigureContext& ctx) {
   clean_signals_.assign(channel_count_, 0.0);
   volts_.assign(channel_count_, 0.0);
   held_command_.assign(input_count_, 0.0);
+  plain_write_ = command_limit_.empty() && substeps_ == 1;
 
   if (!params.ok()) return Status::error("invalid parameters");
   if (!plant_) {
@@ -342,7 +343,7 @@ StepStatus SimBoard::sample(std::int64_t time_ns, bool in_cycle) noexcept {
     }
   }
   const std::uint64_t saturated = convert(channels);
-  inject(channels, injections);
+  if (injections.any()) inject(channels, injections);
   if (saturated > 0) {
     saturations_.fetch_add(saturated, std::memory_order_relaxed);
     if (!was_saturated_)
@@ -399,19 +400,19 @@ StepStatus SimBoard::write(const Tick& tick) noexcept {
     advance_plant(tick.dt_s, safe_command_.data());
     return StepStatus::ok;
   }
-  for (std::size_t i = 0; i < input_count_; ++i) {
-    if (!std::isfinite(command_[i])) {
-      // The DAC goes to its safe values; the plant keeps moving under them.
-      drive_safe();
-      advance_plant(tick.dt_s, safe_command_.data());
-      return fault("non-finite command");
-    }
+  const std::size_t inputs = input_count_;
+  const double* command = command_.data();
+  bool finite = true;
+  for (std::size_t i = 0; i < inputs; ++i) finite = finite && std::isfinite(command[i]);
+  if (!finite) {
+    // The DAC goes to its safe values; the plant keeps moving under them.
+    drive_safe();
+    advance_plant(tick.dt_s, safe_command_.data());
+    return fault("non-finite command");
   }
-  if (command_limit_.empty() && substeps_ == 1) {
-    // Nothing to clamp, one step (dt / 1 is dt): the plant takes the command as it is.
-    const double* u = command_.data();
-    for (std::size_t i = 0; i < input_count_; ++i) held_command_[i] = u[i];
-    plant_->advance(tick.dt_s, held_command_.data());
+  // Nothing to clamp, one step (dt / 1 is dt): the plant takes the command port as it is.
+  if (plain_write_) {
+    plant_->advance(tick.dt_s, command);
     return StepStatus::ok;
   }
   std::uint64_t clamped = 0;

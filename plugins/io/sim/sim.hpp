@@ -109,6 +109,7 @@ class SimBoard final : public Block, public Tunables, public Board {
     std::int64_t live_nan = -1;    ///< the tunable inject_nan_channel
     std::int64_t window_nan = -1;  ///< the YAML inject_nan window
     double previous_count = 0.0, previous_signal = 0.0;  ///< the stuck channel's last reading
+    [[nodiscard]] bool any() const noexcept { return stuck >= 0 || live_nan >= 0 || window_nan >= 0; }
   };
   /// Channels [0, channels) of volts_ through the converter into counts and signals; the
   /// number of clipped samples.
@@ -142,6 +143,7 @@ class SimBoard final : public Block, public Tunables, public Board {
   std::vector<double> safe_command_;
   std::vector<double> command_limit_;  ///< empty: no clamp
   std::int64_t substeps_ = 1;
+  bool plain_write_ = true;  ///< no command_limit and one substep: write() hands the command port to the plant
 
   // Fault injection: the YAML window of NaN readings and the live tunable.
   FaultWindow nan_window_;
