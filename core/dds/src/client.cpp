@@ -34,6 +34,7 @@ ClientImpl::~ClientImpl() {
 }
 
 Status ClientImpl::open(const ParticipantOptions& options) {
+  transport_ = options.transport.kind;
   auto created = create_participant(options, &participants_);
   if (!created) return created.status();
   participant_ = *created;
@@ -72,6 +73,7 @@ fdds::Topic* ClientImpl::find_or_create_topic(const std::string& name, const cha
 Expected<std::unique_ptr<Client>> Client::create(const ParticipantOptions& options) {
   ParticipantOptions named = options;
   if (named.name.empty()) named.name = options_from_environment("").name;
+  named.client = true;
   auto client = std::make_unique<client_detail::ClientImpl>(named.name);
   if (Status s = client->open(named); !s) return s;
   return std::unique_ptr<Client>(std::move(client));

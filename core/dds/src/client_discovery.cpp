@@ -6,6 +6,7 @@
 #include <algorithm>
 
 #include "client_impl.hpp"
+#include "local_delivery.hpp"
 
 namespace lode::dds::client_detail {
 
@@ -46,7 +47,7 @@ void PipelineParticipants::on_participant_discovery(fdds::DomainParticipant*,
     if (info.status == Info::REMOVED_PARTICIPANT || info.status == Info::DROPPED_PARTICIPANT)
       live_.erase(info.info.m_guid.guidPrefix);
     else
-      live_[info.info.m_guid.guidPrefix] = *pipeline;
+      live_[info.info.m_guid.guidPrefix] = {*pipeline, detail::announced_uid(info.info)};
   }
   detail::hold_reply_to_new_participant(info);
 }
@@ -54,14 +55,26 @@ void PipelineParticipants::on_participant_discovery(fdds::DomainParticipant*,
 std::set<std::string> PipelineParticipants::pipelines() const {
   std::lock_guard lock(mutex_);
   std::set<std::string> out;
-  for (const auto& [prefix, pipeline] : live_) out.insert(pipeline);
+  for (const auto& [prefix, bridge] : live_) out.insert(bridge.pipeline);
   return out;
 }
 
 std::size_t PipelineParticipants::count(const std::string& pipeline) const {
   std::lock_guard lock(mutex_);
   return static_cast<std::size_t>(
-      std::count_if(live_.begin(), live_.end(), [&](const auto& entry) { return entry.second == pipeline; }));
+      std::count_if(live_.begin(), live_.end(), [&](const auto& entry) { return entry.second.pipeline == pipeline; }));
+}
+
+bool PipelineParticipants::shared_memory_reaches_us(const std::string& pipeline,
+                                                   const eprosima::fastrtps::rtps::GuidPrefix_t& own) const {
+  std::lock_guard lock(mutex_);
+  bool any = false;
+  for (const auto& [prefix, bridge] : live_) {
+    if (bridge.pipeline != pipeline) continue;
+    if (!detail::shared_memory_reaches_us(own, prefix, bridge.uid)) return false;
+    any = true;
+  }
+  return any;
 }
 
 std::vector<SignalMeta> ClientImpl::signals(std::chrono::milliseconds wait) {

@@ -18,6 +18,7 @@
 #include <deque>
 #include <functional>
 #include <map>
+#include <optional>
 #include <memory>
 #include <mutex>
 #include <set>
@@ -106,10 +107,17 @@ class PipelineParticipants final : public fdds::DomainParticipantListener {
   std::set<std::string> pipelines() const;
   /// Live participants that are the bridge of a pipeline of this name.
   std::size_t count(const std::string& pipeline) const;
+  /// Whether every live bridge of `pipeline` (at least one) can deliver through the shared
+  /// memory of this process, whose participant is `own` (see local_delivery.hpp).
+  bool shared_memory_reaches_us(const std::string& pipeline, const eprosima::fastrtps::rtps::GuidPrefix_t& own) const;
 
  private:
+  struct Bridge {
+    std::string pipeline;
+    std::optional<std::uint32_t> uid;  ///< as the participant announced it
+  };
   mutable std::mutex mutex_;
-  std::map<eprosima::fastrtps::rtps::GuidPrefix_t, std::string> live_;
+  std::map<eprosima::fastrtps::rtps::GuidPrefix_t, Bridge> live_;
 };
 
 class ClientImpl;
@@ -200,6 +208,11 @@ class ClientImpl final : public Client {
   std::vector<SignalMeta> match(const std::string& what) const;
 
   std::string name_;
+  TransportSpec::Kind transport_ = TransportSpec::Kind::loopback;
+  /// The shared-memory locator this client's sample readers announce alone where a pipeline
+  /// can write there (chosen at the first such reader; see local_delivery.hpp).
+  std::mutex shared_memory_mutex_;
+  std::optional<std::optional<eprosima::fastrtps::rtps::Locator_t>> shared_memory_locator_;
   PipelineParticipants participants_;  // outlives participant_ (deleted in the destructor's body)
   fdds::DomainParticipant* participant_ = nullptr;
   fdds::Publisher* publisher_ = nullptr;

@@ -6,6 +6,7 @@
 // the pipelines known from `lode/signals` every 200 ms and adds a reader for each new one;
 // a pipeline that publishes no signal and no state has no SignalInfo and is not found.
 #include "client_impl.hpp"
+#include "local_delivery.hpp"
 #include "lode/sdk/clock.hpp"
 
 namespace lode::dds::client_detail {
@@ -103,10 +104,16 @@ Expected<std::unique_ptr<Subscription>> ClientImpl::subscribe(const SignalMeta& 
                      values.insert(values.end(), s.covariance().begin(), s.covariance().end());
                    });
   const std::int32_t depth = detail::one_second(meta.rate_hz, 64);
-  if (Status s = add_reader(*subscription, topic,
-                            detail::with_reliability(detail::reader_qos(Durability::volatile_, depth), meta.reliable),
-                            gate, std::move(drain));
-      !s) {
+  fdds::DataReaderQos qos = detail::with_reliability(detail::reader_qos(Durability::volatile_, depth), meta.reliable);
+  // Shared memory alone where the pipeline can write into it (local_delivery.hpp): otherwise
+  // every sample comes twice, once as a datagram on 127.0.0.1.
+  if (transport_ == TransportSpec::Kind::loopback &&
+      participants_.shared_memory_reaches_us(meta.pipeline, participant_->guid().guidPrefix)) {
+    std::lock_guard lock(shared_memory_mutex_);
+    if (!shared_memory_locator_) shared_memory_locator_ = detail::shared_memory_locator(*participant_);
+    if (*shared_memory_locator_) qos.endpoint().unicast_locator_list.push_back(**shared_memory_locator_);
+  }
+  if (Status s = add_reader(*subscription, topic, qos, gate, std::move(drain)); !s) {
     return s;
   }
   return std::unique_ptr<Subscription>(std::move(subscription));

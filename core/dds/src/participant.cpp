@@ -24,6 +24,7 @@
 #include <fastdds/rtps/transport/shared_mem/SharedMemTransportDescriptor.h>
 #include <fastrtps/utils/IPLocator.h>
 
+#include "local_delivery.hpp"
 #include "security.hpp"
 
 namespace lode::dds {
@@ -74,10 +75,11 @@ constexpr std::uint32_t kSharedMemorySegmentBytes = 8u << 20;
 // after a verification fails the check: the opener then recreates the port, and the owner
 // takes it up again at its next wake-up (messages sent to the old one in between are lost).
 constexpr std::uint32_t kSharedMemoryHealthCheckMs = 150;
-// UDP on this host carries a pipeline's samples too (a `lode record` process received them
-// as datagrams, ~5600 a second for kawato_planar): with the kernel's default receive buffer
-// (208 KiB, a few hundred datagrams) a reader that did not run for a few tens of
-// milliseconds lost bursts of them (RcvbufErrors). 4 MiB, as far as net.core.rmem_max allows.
+// UDP on this host carries a pipeline's samples to the clients of other users (a `lode
+// record` receives ~5600 datagrams a second of kawato_planar that way): with the kernel's
+// default receive buffer (208 KiB, a few hundred datagrams) a reader that did not run for a
+// few tens of milliseconds lost bursts of them (RcvbufErrors). 4 MiB, as far as
+// net.core.rmem_max allows.
 constexpr std::uint32_t kUdpReceiveBufferBytes = 4u << 20;
 
 bool parse_ipv4(const std::string& text, std::uint8_t out[4]) {
@@ -146,6 +148,7 @@ Status configure_participant_qos(const ParticipantOptions& options, fdds::Domain
                          " is out of range (DDS domain ids are 0..232)");
   }
   qos.name(options.name);
+  detail::announce_uid(qos);
   auto& transport = qos.transport();
   auto& builtin = qos.wire_protocol().builtin;
   transport.use_builtin_transports = false;
@@ -182,6 +185,11 @@ Status configure_participant_qos(const ParticipantOptions& options, fdds::Domain
     case TransportSpec::Kind::loopback:
       shared_memory();
       loopback_udp();
+      // A client's readers announce UDP alone unless told otherwise (local_delivery.hpp): a
+      // shared-memory locator another user's pipeline finds in its discovery data breaks that
+      // pipeline's discovery of the client in Fast DDS 2.9 (it cannot open the client's port
+      // and segment), and the client then sees no pipeline at all.
+      if (options.client) qos.wire_protocol().default_unicast_locator_list.push_back(udp_locator(localhost, 0));
       break;
     case TransportSpec::Kind::shm:
       shared_memory();

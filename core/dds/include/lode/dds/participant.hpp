@@ -21,6 +21,10 @@ struct ParticipantOptions {
   std::string name;  ///< participant name (what `allow_participants` matches)
   TransportSpec transport;
   SecuritySpec security;
+  /// A command-line client (lode echo, record, scope...), not a pipeline's bridge: with the
+  /// loopback transport its readers listen on UDP by default, and on shared memory only where
+  /// the pipeline can write into it (another user's pipeline cannot; see local_delivery.hpp).
+  bool client = false;
 };
 
 /// Fill `qos` with the transports (and security properties) of `options`. Errors (bad
