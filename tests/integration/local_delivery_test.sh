@@ -5,7 +5,8 @@
 #    sample as when every sample also went out as a datagram on 127.0.0.1;
 #  - run by another user (the packaged service runs as `lode`, an engineer watches it as
 #    themselves), they come over UDP: the pipeline and the client discover each other and the
-#    samples arrive, both ways round.
+#    samples arrive, both ways round, and a client that read through shared memory goes on
+#    over UDP when a pipeline of that name turns up run by another user.
 # Runs in a network namespace of its own (so the UDP counters are this test's alone) and needs
 # root for it and for running a process as another user (nobody); exit 77 (skipped) without.
 # usage: local_delivery_test.sh LODE SRC
@@ -83,5 +84,22 @@ kill -TERM "${PIDS[-1]}"; wait "${PIDS[-1]}" 2>/dev/null
 "$LODE" run "$TMP/p.yaml" --clock real --duration 60 --quiet >"$TMP/root.out" 2>&1 &
 PIDS+=($!)
 echo_as nobody "the pipeline run by root, lode echo by nobody"
-kill -TERM "${PIDS[-1]}"; wait "${PIDS[-1]}" 2>/dev/null
+
+# A client reading through shared memory when a pipeline of that name turns up run by another
+# user (a restart, or a namesake as here): it goes on over UDP, and so takes that pipeline's
+# samples too, whose cycle numbers start again at 0 ("out of order"). Shared memory alone, it
+# would never see them.
+"$LODE" echo kf.pose --domain "$DOMAIN" --count 4000 --wait 30 --quiet 2>"$TMP/both.err" &
+echo_pid=$!
+sleep 1
+"${NOBODY[@]}" "$LODE" run "$TMP/p.yaml" --clock real --duration 60 --quiet >"$TMP/nobody/run2.out" 2>&1 &
+PIDS+=($!)
+wait $echo_pid
+check_rc "lode echo takes 4000 samples with another user's namesake turning up" 0 $? "$TMP/both.err"
+if grep -qE "[1-9][0-9]* out of order" "$TMP/both.err"; then
+  ok "the other user's pipeline reached it too: $(grep -oE '[0-9]+ out of order' "$TMP/both.err")"
+else
+  bad "only the first pipeline's samples arrived: $(grep -E "samples," "$TMP/both.err")"
+fi
+for p in "${PIDS[@]: -2}"; do kill -TERM "$p" 2>/dev/null; wait "$p" 2>/dev/null; done
 exit $fail

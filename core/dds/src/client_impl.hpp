@@ -58,12 +58,16 @@ class TakeListener final : public fdds::DataReaderListener {
   TakeListener(std::shared_ptr<Gate> gate, Drain drain) : gate_(std::move(gate)), drain_(std::move(drain)) {}
   void on_data_available(fdds::DataReader* reader) override {
     std::lock_guard lock(gate_->mutex);
-    if (!gate_->closed) drain_(reader, *gate_);
+    if (!gate_->closed && !retired_) drain_(reader, *gate_);
   }
+  /// From now on this reader's samples are left where they are (another reader of the
+  /// subscription takes its place). Under the gate's mutex.
+  void retire() { retired_ = true; }
 
  private:
   std::shared_ptr<Gate> gate_;
   Drain drain_;
+  bool retired_ = false;  ///< guarded by the gate's mutex
 };
 
 /// Every sample `reader` holds, in order, each valid one handed to `use` (the others only
@@ -131,7 +135,10 @@ class ReaderSubscription final : public Subscription {
     return gate_->received.load(std::memory_order_relaxed);
   }
   void add(fdds::DataReader* reader, std::unique_ptr<TakeListener> listener);
-  /// For "every pipeline": a thread that adds a reader per newly seen pipeline.
+  /// The readers so far deliver nothing more (they are deleted with the subscription).
+  void retire_readers();
+  /// A thread that runs `poll` every 200 ms: for "every pipeline", a reader per newly seen
+  /// pipeline; for a shared-memory reader, its replacement when that can no longer work.
   void watch(std::function<void()> poll);
 
  private:

@@ -74,6 +74,12 @@ void ReaderSubscription::add(fdds::DataReader* reader, std::unique_ptr<TakeListe
   readers_.push_back({reader, std::move(listener)});
 }
 
+void ReaderSubscription::retire_readers() {
+  std::lock_guard gate(gate_->mutex);  // waits for a callback in progress
+  std::lock_guard lock(readers_mutex_);
+  for (auto& entry : readers_) entry.listener->retire();
+}
+
 void ReaderSubscription::watch(std::function<void()> poll) {
   watcher_ = std::thread([this, poll = std::move(poll)] {
     std::unique_lock lock(stop_mutex_);
@@ -104,18 +110,33 @@ Expected<std::unique_ptr<Subscription>> ClientImpl::subscribe(const SignalMeta& 
                      values.insert(values.end(), s.covariance().begin(), s.covariance().end());
                    });
   const std::int32_t depth = detail::one_second(meta.rate_hz, 64);
-  fdds::DataReaderQos qos = detail::with_reliability(detail::reader_qos(Durability::volatile_, depth), meta.reliable);
-  // Shared memory alone where the pipeline can write into it (local_delivery.hpp): otherwise
-  // every sample comes twice, once as a datagram on 127.0.0.1.
-  if (transport_ == TransportSpec::Kind::loopback &&
-      participants_.shared_memory_reaches_us(meta.pipeline, participant_->guid().guidPrefix)) {
+  const fdds::DataReaderQos qos =
+      detail::with_reliability(detail::reader_qos(Durability::volatile_, depth), meta.reliable);
+  // Shared memory alone where the pipeline can deliver through it (local_delivery.hpp):
+  // otherwise every sample comes twice, once as a datagram on 127.0.0.1.
+  std::optional<eprosima::fastrtps::rtps::Locator_t> shared_memory;
+  const auto own = participant_->guid().guidPrefix;
+  if (transport_ == TransportSpec::Kind::loopback && participants_.shared_memory_reaches_us(meta.pipeline, own)) {
     std::lock_guard lock(shared_memory_mutex_);
     if (!shared_memory_locator_) shared_memory_locator_ = detail::shared_memory_locator(*participant_);
-    if (*shared_memory_locator_) qos.endpoint().unicast_locator_list.push_back(**shared_memory_locator_);
+    shared_memory = *shared_memory_locator_;
   }
-  if (Status s = add_reader(*subscription, topic, qos, gate, std::move(drain)); !s) {
-    return s;
+  if (!shared_memory) {
+    if (Status s = add_reader(*subscription, topic, qos, gate, std::move(drain)); !s) return s;
+    return std::unique_ptr<Subscription>(std::move(subscription));
   }
+  fdds::DataReaderQos local = qos;
+  local.endpoint().unicast_locator_list.push_back(*shared_memory);
+  if (Status s = add_reader(*subscription, topic, local, gate, drain); !s) return s;
+  // A pipeline of that name that cannot deliver through shared memory (restarted by another
+  // user, say) would never reach that reader: from then on the subscription reads over UDP,
+  // through a second reader, the first one retired.
+  ReaderSubscription* raw = subscription.get();
+  subscription->watch([this, raw, topic, qos, gate, drain, own, pipeline = meta.pipeline, fell_back = false]() mutable {
+    if (fell_back || participants_.count(pipeline) == 0 || participants_.shared_memory_reaches_us(pipeline, own)) return;
+    raw->retire_readers();
+    fell_back = add_reader(*raw, topic, qos, gate, drain).is_ok();
+  });
   return std::unique_ptr<Subscription>(std::move(subscription));
 }
 
