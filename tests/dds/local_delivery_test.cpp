@@ -54,23 +54,33 @@ TEST(LocalDelivery, TheUidIsReadFromTheAnnouncedProperties) {
   EXPECT_EQ(announced_uid(garbled), std::nullopt);
 }
 
-TEST(LocalDelivery, TheLocatorIsAPortOfThisProcessOnThisHost) {
+TEST(LocalDelivery, APortIsClaimedBelowFastDdsPortsAndTakenAgainWhenFree) {
   namespace fdds = eprosima::fastdds::dds;
+  using lode::dds::detail::SharedMemoryPort;
   fdds::DomainParticipantQos qos = fdds::PARTICIPANT_QOS_DEFAULT;
   lode::dds::detail::announce_uid(qos);
   auto* factory = fdds::DomainParticipantFactory::get_instance();
   fdds::DomainParticipant* participant = factory->create_participant(lode::testing::private_dds_domain(), qos);
   ASSERT_NE(participant, nullptr);
-  const auto first = lode::dds::detail::shared_memory_locator(*participant);
-  const auto second = lode::dds::detail::shared_memory_locator(*participant);
-  ASSERT_TRUE(first && second);
-  EXPECT_EQ(first->kind, LOCATOR_KIND_SHM);
-  EXPECT_EQ(first->address[0], 'U');
-  EXPECT_EQ(first->address[1], participant->guid().guidPrefix.value[2]);
-  EXPECT_EQ(first->address[2], participant->guid().guidPrefix.value[3]);
-  EXPECT_GT(first->port, 65535u) << "above every port Fast DDS numbers itself";
-  EXPECT_NE(first->port, second->port) << "each call a port of its own";
-  EXPECT_EQ(first->port / 64, second->port / 64) << "within this process's 64";
+  std::uint32_t first_port = 0;
+  {
+    auto first = SharedMemoryPort::claim(*participant);
+    auto second = SharedMemoryPort::claim(*participant);
+    ASSERT_TRUE(first && second);
+    const auto& locator = first->locator();
+    EXPECT_EQ(locator.kind, LOCATOR_KIND_SHM);
+    EXPECT_EQ(locator.address[0], 'U');
+    EXPECT_EQ(locator.address[1], participant->guid().guidPrefix.value[2]);
+    EXPECT_EQ(locator.address[2], participant->guid().guidPrefix.value[3]);
+    EXPECT_GE(locator.port, 1024u);
+    EXPECT_LT(locator.port, 7400u) << "below every port Fast DDS numbers itself";
+    EXPECT_NE(locator.port, second->locator().port) << "a claimed port is not handed out twice";
+    first_port = locator.port;
+  }
+  // Released with its holder: the lowest free port is taken again (no port left behind).
+  auto again = SharedMemoryPort::claim(*participant);
+  ASSERT_TRUE(again);
+  EXPECT_LE(again->locator().port, first_port);
   factory->delete_participant(participant);
 }
 

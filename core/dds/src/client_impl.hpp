@@ -37,6 +37,7 @@
 #include <fastdds/dds/topic/Topic.hpp>
 
 #include "common.hpp"
+#include "local_delivery.hpp"
 #include "lode_msgs.h"
 
 namespace lode::dds::client_detail {
@@ -216,10 +217,12 @@ class ClientImpl final : public Client {
 
   std::string name_;
   TransportSpec::Kind transport_ = TransportSpec::Kind::loopback;
-  /// The shared-memory locator this client's sample readers announce alone where a pipeline
-  /// can write there (chosen at the first such reader; see local_delivery.hpp).
+  /// The shared-memory port this client's sample readers announce alone where a pipeline can
+  /// deliver there (claimed at the first such reader, held until the client is destroyed,
+  /// after its participant; see local_delivery.hpp).
   std::mutex shared_memory_mutex_;
-  std::optional<std::optional<eprosima::fastrtps::rtps::Locator_t>> shared_memory_locator_;
+  bool shared_memory_tried_ = false;
+  std::optional<detail::SharedMemoryPort> shared_memory_port_;
   PipelineParticipants participants_;  // outlives participant_ (deleted in the destructor's body)
   fdds::DomainParticipant* participant_ = nullptr;
   fdds::Publisher* publisher_ = nullptr;

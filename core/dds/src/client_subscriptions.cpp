@@ -118,8 +118,9 @@ Expected<std::unique_ptr<Subscription>> ClientImpl::subscribe(const SignalMeta& 
   const auto own = participant_->guid().guidPrefix;
   if (transport_ == TransportSpec::Kind::loopback && participants_.shared_memory_reaches_us(meta.pipeline, own)) {
     std::lock_guard lock(shared_memory_mutex_);
-    if (!shared_memory_locator_) shared_memory_locator_ = detail::shared_memory_locator(*participant_);
-    shared_memory = *shared_memory_locator_;
+    if (!shared_memory_tried_) shared_memory_port_ = detail::SharedMemoryPort::claim(*participant_);
+    shared_memory_tried_ = true;
+    if (shared_memory_port_) shared_memory = shared_memory_port_->locator();
   }
   if (!shared_memory) {
     if (Status s = add_reader(*subscription, topic, qos, gate, std::move(drain)); !s) return s;

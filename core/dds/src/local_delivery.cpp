@@ -4,7 +4,6 @@
 #include <sys/file.h>
 #include <unistd.h>
 
-#include <atomic>
 #include <charconv>
 #include <string>
 
@@ -52,32 +51,62 @@ bool port_held(std::uint32_t port) {
   return held;
 }
 
+// Ports 1024 to 7399: Fast DDS numbers its own from 7400 up (the RTPS port base), so none of
+// its participants takes one of these; 4 digits, so `fastdds shm clean` recognises a port a
+// killed client left behind, and the lowest free one is taken, so the next client takes such
+// a port over instead of leaving another.
+constexpr std::uint32_t kFirstPort = 1024, kEndPort = 7400;
+
 }  // namespace
 
-std::optional<rtps::Locator_t> shared_memory_locator(const eprosima::fastdds::dds::DomainParticipant& participant) {
+std::optional<SharedMemoryPort> SharedMemoryPort::claim(const eprosima::fastdds::dds::DomainParticipant& participant) {
 #if FASTRTPS_VERSION_MAJOR == 2
   // A port of its own, not the participant's default one: Fast DDS moves a participant's ports
-  // past those in use and does not say where they ended up. Above the RTPS ports (<= 65535),
-  // 64 per process id; one a live process holds (another PID namespace sharing /dev/shm) is
-  // passed over. Fast DDS 2.x lays a shared-memory locator out as 'U' and the host id (the GUID
-  // prefix's bytes 2 and 3), which is how the writers tell it is on their host.
-  static std::atomic<std::uint32_t> next{0};
-  const std::uint32_t first = 0x10000u + static_cast<std::uint32_t>(::getpid()) * 64u;
-  for (int tries = 0; tries < 64; ++tries) {
-    const std::uint32_t port = first + next.fetch_add(1) % 64u;
-    if (port_held(port)) continue;
+  // past those in use and does not say where they ended up. A lodestone client claims a port
+  // with an flock on /dev/shm/lode_shm_port<N>_claim for as long as it uses the port (two
+  // clients starting together cannot take the same one; a killed one releases it), and passes
+  // over one whose Fast DDS lock is held (any other process listening there).
+  for (std::uint32_t port = kFirstPort; port < kEndPort; ++port) {
+    const std::string claim = "/dev/shm/lode_shm_port" + std::to_string(port) + "_claim";
+    const int fd = ::open(claim.c_str(), O_RDONLY | O_CREAT | O_CLOEXEC, 0666);
+    if (fd < 0) continue;
+    if (::flock(fd, LOCK_EX | LOCK_NB) != 0 || port_held(port)) {
+      ::close(fd);
+      continue;
+    }
+    // Fast DDS 2.x lays a shared-memory locator out as 'U' and the host id (the GUID prefix's
+    // bytes 2 and 3), which is how the writers tell it is on their host.
     const rtps::GuidPrefix_t& prefix = participant.guid().guidPrefix;
     rtps::Locator_t locator(LOCATOR_KIND_SHM, port);
     locator.address[0] = 'U';
     locator.address[1] = prefix.value[2];
     locator.address[2] = prefix.value[3];
-    return locator;
+    return SharedMemoryPort(locator, fd);
   }
   return std::nullopt;
 #else
   (void)participant;
   return std::nullopt;
 #endif
+}
+
+SharedMemoryPort::SharedMemoryPort(SharedMemoryPort&& other) noexcept
+    : locator_(other.locator_), claim_fd_(other.claim_fd_) {
+  other.claim_fd_ = -1;
+}
+
+SharedMemoryPort& SharedMemoryPort::operator=(SharedMemoryPort&& other) noexcept {
+  if (this != &other) {
+    if (claim_fd_ >= 0) ::close(claim_fd_);
+    locator_ = other.locator_;
+    claim_fd_ = other.claim_fd_;
+    other.claim_fd_ = -1;
+  }
+  return *this;
+}
+
+SharedMemoryPort::~SharedMemoryPort() {
+  if (claim_fd_ >= 0) ::close(claim_fd_);
 }
 
 }  // namespace lode::dds::detail

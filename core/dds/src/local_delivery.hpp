@@ -42,11 +42,25 @@ bool shared_memory_reaches_us(const eprosima::fastrtps::rtps::GuidPrefix_t& own,
                                  const eprosima::fastrtps::rtps::GuidPrefix_t& peer,
                                  std::optional<std::uint32_t> peer_uid);
 
-/// A shared-memory unicast locator on a port of this process's own, for `participant`'s
-/// readers to announce alone (every reader of a participant shares one: each port has a
-/// listening thread). nullopt where the Fast DDS in use is not of the 2.x series, whose
-/// locators this builds the way its shared-memory transport does, or no port is free.
-std::optional<eprosima::fastrtps::rtps::Locator_t> shared_memory_locator(
-    const eprosima::fastdds::dds::DomainParticipant& participant);
+/// A shared-memory port of this process's own, for a participant's readers to announce alone
+/// (every reader of a participant shares it: each port has a listening thread), held until
+/// destroyed.
+class SharedMemoryPort {
+ public:
+  /// A free port below Fast DDS's RTPS ports, or nullopt where the Fast DDS in use is not of the
+  /// 2.x series (whose locators this builds the way its shared-memory transport does) or none
+  /// is free.
+  static std::optional<SharedMemoryPort> claim(const eprosima::fastdds::dds::DomainParticipant& participant);
+  SharedMemoryPort(SharedMemoryPort&& other) noexcept;
+  SharedMemoryPort& operator=(SharedMemoryPort&& other) noexcept;
+  SharedMemoryPort(const SharedMemoryPort&) = delete;
+  ~SharedMemoryPort();
+  [[nodiscard]] const eprosima::fastrtps::rtps::Locator_t& locator() const { return locator_; }
+
+ private:
+  SharedMemoryPort(eprosima::fastrtps::rtps::Locator_t locator, int claim_fd) : locator_(locator), claim_fd_(claim_fd) {}
+  eprosima::fastrtps::rtps::Locator_t locator_;
+  int claim_fd_ = -1;
+};
 
 }  // namespace lode::dds::detail
