@@ -19,13 +19,17 @@ void Envelope::flatten() {
   symmetric_pairs_.clear();
   bound_pairs_.clear();
   rate_pairs_.clear();
-  rates_.clear();
   struct Element {
     const double* value;
     double min, max;
   };
+  struct Rated {
+    const double* value;
+    double* previous;
+    double max_rate;
+  };
   std::vector<Element> symmetric, bounded;
-  std::vector<std::pair<RateBound, double>> rated;
+  std::vector<Rated> rated;
   for (std::size_t l = 0; l < limits_.size(); ++l) {
     const Limit& limit = limits_[l];
     State& state = states_[l];
@@ -37,7 +41,7 @@ void Envelope::flatten() {
       const double min = std::max(limit.min[i], -widest), max = std::min(limit.max[i], widest);
       (min == -max ? symmetric : bounded).push_back({limit.data + i, min, max});
       if (limit.max_rate[i] < std::numeric_limits<double>::infinity())
-        rated.push_back({{limit.data + i, &state.previous[i]}, limit.max_rate[i]});
+        rated.push_back({limit.data + i, &state.previous[i], limit.max_rate[i]});
     }
   }
   // Element k with element k + 1, the last of an odd count with itself.
@@ -53,11 +57,10 @@ void Envelope::flatten() {
     bound_pairs_.push_back({a.value, b.value, Pair{a.min, b.min}, Pair{a.max, b.max}});
   }
   for (std::size_t k = 0; k < rated.size(); k += 2) {
-    const auto& [a, a_max] = rated[k];
-    const auto& [b, b_max] = rated[partner(k, rated.size())];
-    rate_pairs_.push_back({a.value, b.value, a.previous, b.previous, Pair{a_max, b_max}});
+    const Rated& a = rated[k];
+    const Rated& b = rated[partner(k, rated.size())];
+    rate_pairs_.push_back({a.value, b.value, a.previous, b.previous, Pair{a.max_rate, b.max_rate}});
   }
-  for (const auto& r : rated) rates_.push_back(r.first);
   states_settled_ = false;
 }
 
@@ -102,8 +105,12 @@ bool Envelope::check(const Tick& tick) noexcept {
   }
   if (!(inside[0] & inside[1])) return check_each(tick);
   // What check_limit leaves behind when every value is inside, and finite where invalid values
-  // have a budget (previous values are read only where a rate is limited).
-  for (const RateBound& r : rates_) *r.previous = *r.value;
+  // have a budget (previous values are read only where a rate is limited; an odd element,
+  // paired with itself, is stored twice).
+  for (const RatePair& r : rate_pairs_) {
+    *r.previous_first = *r.first;
+    *r.previous_second = *r.second;
+  }
   if (!states_settled_) {
     for (State& state : states_) {
       state.have_previous = true;

@@ -96,18 +96,13 @@ class Envelope {
   struct RatePair {
     const double* first;
     const double* second;
-    const double* previous_first;
-    const double* previous_second;
+    double* previous_first;  ///< where the previous values are kept
+    double* previous_second;
     Pair max_rate;
-  };
-  struct RateBound {
-    const double* value;
-    double* previous;
   };
   std::vector<SymmetricPair> symmetric_pairs_;
   std::vector<BoundPair> bound_pairs_;
   std::vector<RatePair> rate_pairs_;
-  std::vector<RateBound> rates_;  ///< where the previous values are kept, one per rate-limited element
   /// Every state holds what a fully inside check leaves (have_previous, not invalid): the
   /// fast path need not write them again. Cleared by reset() and by check_each().
   bool states_settled_ = false;
