@@ -48,15 +48,20 @@ SignalTap::SignalTap(std::vector<SignalRef> signals, std::size_t capacity_record
   for (const auto& s : signals_) {
     columns_.push_back(stride_);
     stride_ += s.size();
+    if (s.size() == 0) continue;
+    if (!spans_.empty() && spans_.back().data + spans_.back().size == s.data)
+      spans_.back().size += s.size();
+    else
+      spans_.push_back({s.data, s.size()});
   }
 }
 
 void SignalTap::capture(std::uint64_t cycle, std::int64_t time_ns) noexcept {
   double* values = ring_.claim();
   if (values == nullptr) return;  // full: counted by the ring
-  for (const auto& s : signals_) {
-    std::memcpy(values, s.data, s.size() * sizeof(double));
-    values += s.size();
+  for (const Span& s : spans_) {
+    std::memcpy(values, s.data, s.size * sizeof(double));
+    values += s.size;
   }
   SampleHeader header;
   header.cycle = cycle;

@@ -114,6 +114,32 @@ TEST(SignalTap, CountsDropsWhenConsumerStalls) {
   EXPECT_EQ(rows[7 * tap.stride() + 2], 7.0);  // value of cycle 7 last
 }
 
+
+// A tap copies signals that lie next to each other in one piece: what each record holds must
+// still be every signal in the order given, wherever they lie (adjacent, apart, in an order
+// other than their storage's, empty).
+TEST(SignalTap, RecordsSignalsInTheirOrderWhereverTheyLie) {
+  std::vector<double> storage(10);
+  for (std::size_t i = 0; i < storage.size(); ++i) storage[i] = 100.0 + static_cast<double>(i);
+  lode::Elements two = {{"a", ""}, {"b", ""}}, one = {{"a", ""}}, none;
+  const double* at = storage.data();
+  // [0, 2) and [2, 4) adjacent; [7, 8) apart; [4, 6) adjacent to [2, 4) in storage but listed
+  // after [7, 8); an empty signal between; [8, 10) after [4, 6) with a gap of two.
+  const std::vector<lode::SignalRef> signals = {
+      {"s0", "o", at + 0, &two}, {"s1", "o", at + 2, &two}, {"s2", "o", at + 7, &one},
+      {"s3", "o", at + 8, &none}, {"s4", "o", at + 4, &two}, {"s5", "o", at + 8, &two}};
+  lode::SignalTap tap(signals, 4);
+  tap.capture(3, 0);
+  std::vector<double> rows;
+  ASSERT_EQ(tap.drain(rows), 1u);
+  const std::vector<double> expected = {3.0, 0.0, 100, 101, 102, 103, 107, 104, 105, 108, 109};
+  EXPECT_EQ(rows, expected);
+  for (std::size_t i = 0; i < signals.size(); ++i) {
+    if (signals[i].size() > 0) {
+      EXPECT_EQ(rows[tap.column(i)], *signals[i].data) << signals[i].block;
+    }
+  }
+}
 struct ParamsFixture : ::testing::Test {
   lode::Diagnostics diag;
   lode::Params load(const std::string& text) {
