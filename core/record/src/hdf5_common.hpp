@@ -4,10 +4,9 @@
 
 #include <hdf5.h>
 
-#include <hdf5.h>
-
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <ctime>
 #include <limits>
@@ -25,12 +24,14 @@ inline constexpr int kFormatVersion = 1;
 inline constexpr hsize_t kMaxChunkRows = 4096;
 inline constexpr hsize_t kMinChunkRows = 64;
 inline constexpr hsize_t kEventChunkRows = 256;
-/// Chunk of a recording whose length is known in advance (Recorder::expect_rows): 2048 rows
-/// = 16 KiB per column. The rows of the last chunk are written when the file is closed, after
-/// the last cycle, while the chunks before it are written beside the cycles (a simulated
-/// run's recording thread): at 16384 rows, that last write was a third of a 30 s replay's
-/// close and the column buffers (12.5 MiB) to fault in.
-inline constexpr hsize_t kKnownLengthChunkRows = 2048;
+/// Chunk of a recording whose length is known in advance (Recorder::expect_rows): 8192 rows
+/// = 64 KiB per column. The chunks are written whole, as they are (append_whole_chunk()),
+/// beside the cycles (a simulated run's recording thread), and the last one when the file is
+/// closed, after the last cycle. Measured on a 30 s replay (24 000 rows, 100 columns): writing
+/// 19 MB to ext4 in 16 KiB pieces took the kernel about twice as long as in 64 KiB ones, and
+/// the recording thread, at 2048 rows, about as much CPU time as the cycles beside it; at
+/// 16384 rows it fell behind at each chunk boundary, with the same last chunk (7616 rows).
+inline constexpr hsize_t kKnownLengthChunkRows = 8192;
 inline constexpr std::array<const char*, 4> kTimeColumns = {"cycle", "stamp_ns", "captured_ns", "time_s"};
 
 // ---- HDF5 plumbing ------------------------------------------------------------------------
@@ -225,6 +226,24 @@ inline bool append_to_column(hid_t dataset, hsize_t old_rows, hsize_t count, hid
   }
   Handle memory_space(H5Screate_simple(1, &count, nullptr));
   return H5Dwrite(dataset, memory_type, memory_space.get(), file_space.get(), transfer, data) >= 0;
+}
+
+/// Writes `count` rows at row `old_rows` of `dataset` from `data`, which holds one whole chunk
+/// of `chunk_rows` rows (`count` of them the rows to write, any others past the dataset's
+/// `extent`, never read), at a chunk's start: as one unfiltered chunk, its bytes as they are in
+/// memory (the file's little-endian types on a little-endian host). H5Dwrite_chunk hands them
+/// to the file as they are; H5Dwrite would first allocate and zero a chunk buffer, work out the
+/// selection and copy the rows into it. Anything else, and a big-endian host, goes through
+/// append_to_column().
+inline bool append_whole_chunk(hid_t dataset, hsize_t old_rows, hsize_t count, hsize_t chunk_rows, hid_t memory_type,
+                               const void* data, hsize_t extent) {
+  const hsize_t new_rows = old_rows + count;
+  if (std::endian::native != std::endian::little || old_rows % chunk_rows != 0 || count > chunk_rows ||
+      (count < chunk_rows && new_rows != extent))
+    return append_to_column(dataset, old_rows, count, memory_type, data, extent);
+  if (new_rows > extent && H5Dset_extent(dataset, &new_rows) < 0) return false;
+  const hsize_t offset = old_rows;
+  return H5Dwrite_chunk(dataset, H5P_DEFAULT, 0, &offset, static_cast<std::size_t>(chunk_rows) * 8, data) >= 0;
 }
 
 inline std::string utc_now() {

@@ -64,15 +64,36 @@ struct Recorder::Impl {
     if (count == 0 || s.broken) return;
     s.time_s.resize(count);
     for (hsize_t row = 0; row < count; ++row) s.time_s[row] = static_cast<double>(s.stamp_ns[row]) * 1e-9;
-    bool ok =
-        append_to_column(s.cycle_column.get(), s.rows_written, count, H5T_NATIVE_UINT64, s.cycle.data(), s.extent) &&
-        append_to_column(s.stamp_column.get(), s.rows_written, count, H5T_NATIVE_INT64, s.stamp_ns.data(), s.extent) &&
-        append_to_column(s.captured_column.get(), s.rows_written, count, H5T_NATIVE_INT64, s.captured_ns.data(), s.extent) &&
-        append_to_column(s.time_column.get(), s.rows_written, count, H5T_NATIVE_DOUBLE, s.time_s.data(), s.extent);
-    for (std::size_t v = 0; ok && v < s.value_columns.size(); ++v) {
-      ok = append_to_column(s.value_columns[v].get(), s.rows_written, count, H5T_NATIVE_DOUBLE, s.values[v].data(),
-                            s.extent);
+    // A file laid out at its final length (a replay's) is written a whole chunk at a time, as
+    // the rows are in memory (append_whole_chunk()); its last rows, which start a chunk they do
+    // not fill, padded with the fill values to a whole one. Not a recording of unknown length
+    // (lode run --record, lode record): on a disk that filled, its file then held rows that
+    // were never written, read back as rows (not as the fill values that tell a reader they
+    // are missing), where H5Dwrite leaves none.
+    const bool direct = expected_rows > 0;
+    const bool last_chunk =
+        direct && count < s.chunk_rows && s.rows_written % s.chunk_rows == 0 && s.rows_written + count == s.extent;
+    if (last_chunk) {
+      const std::size_t whole = static_cast<std::size_t>(s.chunk_rows);
+      s.cycle.resize(whole, kMissingCycle);
+      s.stamp_ns.resize(whole, kMissingStamp);
+      s.captured_ns.resize(whole, kMissingStamp);
+      s.time_s.resize(whole, kMissingValue);
+      for (auto& column : s.values) column.resize(whole, kMissingValue);
     }
+    // Every column's elements are 8 bytes, as append_whole_chunk() writes them.
+    static_assert(sizeof(std::uint64_t) == 8 && sizeof(std::int64_t) == 8 && sizeof(double) == 8);
+    const auto append = [&](hid_t column, hid_t memory_type, const void* data) {
+      return (direct && count == s.chunk_rows) || last_chunk
+                 ? append_whole_chunk(column, s.rows_written, count, s.chunk_rows, memory_type, data, s.extent)
+                 : append_to_column(column, s.rows_written, count, memory_type, data, s.extent);
+    };
+    bool ok = append(s.cycle_column.get(), H5T_NATIVE_UINT64, s.cycle.data()) &&
+              append(s.stamp_column.get(), H5T_NATIVE_INT64, s.stamp_ns.data()) &&
+              append(s.captured_column.get(), H5T_NATIVE_INT64, s.captured_ns.data()) &&
+              append(s.time_column.get(), H5T_NATIVE_DOUBLE, s.time_s.data());
+    for (std::size_t v = 0; ok && v < s.value_columns.size(); ++v)
+      ok = append(s.value_columns[v].get(), H5T_NATIVE_DOUBLE, s.values[v].data());
     if (!ok) {
       s.broken = true;
       fail("cannot write " + std::to_string(count) + " rows of /signals/" + s.info.name + ": " + hdf5_message());
