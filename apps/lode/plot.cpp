@@ -18,6 +18,7 @@
 
 #include "commands.hpp"
 #include "plot.hpp"
+#include "memory_check.hpp"
 #include "plot_data.hpp"
 #include "plot_html.hpp"
 #include "plot_metrics.hpp"
@@ -122,6 +123,12 @@ int write_plot_report(const std::vector<std::string>& recordings, const fs::path
     return kExitFault;
   }
   const auto started = std::chrono::steady_clock::now();
+  // Measured: a report's peak is about 1.5 times the recordings it reads (each held whole, and
+  // the arrays of its figures).
+  if (!enough_memory("plot", recordings.size() == 1 ? recordings.front() : std::to_string(recordings.size()) + " recordings",
+                     static_cast<std::uint64_t>(1.6 * static_cast<double>(files_bytes(recordings))),
+                     "each recording is read whole"))
+    return kExitFault;
   PluginRegistry registry;  // before the pipelines: their plugins' libraries outlive them
   std::vector<plot::LoadedRecording> loaded;
   for (const auto& path : recordings) {

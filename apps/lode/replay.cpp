@@ -19,6 +19,8 @@
 #include "plot.hpp"
 #include "log_drain.hpp"
 #include "lode/event_log.hpp"
+#include "lode/host_memory.hpp"
+#include "memory_check.hpp"
 #include "run_services.hpp"
 
 namespace lode::cli {
@@ -355,6 +357,18 @@ std::optional<int> replay_one(const ReplayContext& ctx, const Job& job, ConfigRe
 
 int replay(const Args& args) {
   const ReplayArgs a = replay_args(args);
+  {
+    // Measured: a replay's peak is about twice the recording's size (the recording and each
+    // replayed file, read back to check it, held whole), an HTML report's about 1.5 times the
+    // files it plots more.
+    const double size = static_cast<double>(files_bytes({a.recording}));
+    double needed = 2.1 * size;
+    if (fs::path(a.report).extension() == ".html") needed += 1.6 * size * static_cast<double>(1 + a.configs.size());
+    if (!enough_memory("replay", a.recording + " (" + format_bytes(files_bytes({a.recording})) + ")",
+                       static_cast<std::uint64_t>(needed),
+                       "a replay holds the recording and reads each replayed file back beside it"))
+      return kExitFault;
+  }
   const auto source = open_recording(a.recording);
   if (!source) return kExitConfig;
   const auto jobs = make_jobs(a, *source);

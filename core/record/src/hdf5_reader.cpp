@@ -7,6 +7,7 @@
 #include <mutex>
 
 #include "hdf5_common.hpp"
+#include "lode/host_memory.hpp"
 
 namespace lode::record {
 
@@ -212,6 +213,29 @@ Expected<SeriesData> read_series(hid_t signals, const std::string& name, std::ve
   return data;
 }
 
+/// The memory read_series() takes for the series `names` of /signals: the rows of each
+/// (its cycle column's length) times its cycle, stamp and captured columns and its values,
+/// held until the end, plus the largest series' values once more (its columns, read before
+/// they are interleaved). Series it cannot size count for nothing: read_series() reports them.
+std::uint64_t memory_to_read(hid_t signals, const std::vector<std::string>& names) {
+  std::uint64_t held = 0, largest_values = 0;
+  for (const auto& name : names) {
+    Handle group(H5Gopen2(signals, name.c_str(), H5P_DEFAULT));
+    if (!group.valid()) continue;
+    Handle cycle(H5Dopen2(group.get(), "cycle", H5P_DEFAULT));
+    auto elements = read_string_attribute(group.get(), "names");
+    if (!cycle.valid() || !elements) continue;
+    Handle space(H5Dget_space(cycle.get()));
+    const hssize_t rows = space.valid() ? H5Sget_simple_extent_npoints(space.get()) : -1;
+    if (rows <= 0) continue;
+    const std::uint64_t values = static_cast<std::uint64_t>(rows) * elements->size() * sizeof(double);
+    held += static_cast<std::uint64_t>(rows) * 3 * sizeof(std::uint64_t) + values;
+    largest_values = std::max(largest_values, values);
+  }
+  H5Eclear2(H5E_DEFAULT);
+  return held + largest_values;
+}
+
 }  // namespace
 
 Expected<Recording> read_recording(const std::string& path) {
@@ -243,6 +267,15 @@ Expected<Recording> read_recording(const std::string& path) {
     if (H5Literate(signals.get(), H5_INDEX_NAME, H5_ITER_INC, nullptr, collect_link_name, &names) < 0) {
       return Status::error(where + "cannot list /signals: " + hdf5_message());
     }
+  }
+  // A recording is read whole: one too large for the memory left is refused with the figures,
+  // before the reading fills the memory and the OOM killer ends this process (or another).
+  const std::uint64_t needed = memory_to_read(signals.get(), names);
+  if (const auto available = available_memory_bytes(); available && needed > *available) {
+    return Status::error(where + "reading its " + std::to_string(names.size()) + " series takes about " +
+                         format_bytes(needed) + " of memory and this process has " + format_bytes(*available) +
+                         " left (available memory, within its control group's limit); read it on a machine "
+                         "with more memory free");
   }
   for (const auto& name : names) {
     auto series = read_series(signals.get(), name, recording.warnings);

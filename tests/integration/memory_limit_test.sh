@@ -1,0 +1,81 @@
+#!/usr/bin/env bash
+# Commands that hold a whole recording in memory, under a memory limit: a recording too large
+# for the memory left is refused at once, with the file, what it needs and what is left (not an
+# out-of-memory kill, nor std::bad_alloc after the run), and one that fits runs as ever.
+#  - `lode replay` of a 300 s recording (about 195 MB; a replay needs twice that) in a control
+#    group limited to 200 MiB: exit 1 and the figures, before anything is replayed;
+#  - `lode plot` of it: exit 1 and the figures;
+#  - `lode check` of a pipeline whose io.replay block plays it back, under 150 MiB: the
+#    recording's reader refuses it (what every reader of a whole recording meets), exit 2;
+#  - `lode replay` of a 5 s recording in the same group: bit-identical, exit 0.
+# The limit is a control group of this test's own: cgroup v1's memory hierarchy directly, or
+# on cgroup v2 a transient scope (systemd-run --scope -p MemoryMax=). Exit 77 (skipped)
+# without root or either.
+# usage: memory_limit_test.sh LODE SRC
+set -u
+LODE=$1 SRC=$2
+[ "$(id -u)" = 0 ] || { echo "skipped: needs root (a control group with a memory limit)"; exit 77; }
+source "$(dirname "$0")/test_lib.sh"
+LIMIT=$((200 * 1024 * 1024))
+
+# limited CMD...: CMD in a control group limited to LIMIT bytes; 125 when none can be made.
+V1_GROUP=""
+v1_memory=$(awk -F: '$2 == "memory" { print $3 }' /proc/self/cgroup)
+if [ -n "$v1_memory" ] && [ -d "/sys/fs/cgroup/memory$v1_memory" ]; then
+  V1_GROUP="/sys/fs/cgroup/memory$v1_memory/lode_memory_limit_test_$$"
+  if mkdir "$V1_GROUP" 2>/dev/null && echo "$LIMIT" >"$V1_GROUP/memory.limit_in_bytes" 2>/dev/null; then
+    trap 'cleanup; rmdir "$V1_GROUP" 2>/dev/null' EXIT
+  else
+    rmdir "$V1_GROUP" 2>/dev/null
+    V1_GROUP=""
+  fi
+fi
+limited() {
+  if [ -n "$V1_GROUP" ]; then
+    echo "$LIMIT" >"$V1_GROUP/memory.limit_in_bytes" || return 125
+    bash -c 'echo $$ >"$0/cgroup.procs" && exec "$@"' "$V1_GROUP" "$@"
+  else
+    systemd-run --quiet --scope -p MemoryMax="$LIMIT" -p MemorySwapMax=0 \
+      --setenv=LODE_PLUGIN_PATH="$LODE_PLUGIN_PATH" --setenv=XDG_RUNTIME_DIR="$XDG_RUNTIME_DIR" "$@"
+  fi
+}
+if [ -z "$V1_GROUP" ] && ! limited true 2>/dev/null; then
+  echo "skipped: no control group with a memory limit can be made here (cgroup v1 memory, or systemd-run --scope)"
+  exit 77
+fi
+
+"$LODE" run "$SRC/config/kawato_planar.yaml" --clock sim --duration 300 --no-telemetry --no-local-control --quiet \
+  --record "$TMP/long.h5" >"$TMP/long.out" 2>&1
+check_rc "a 300 s recording" 0 $? "$TMP/long.out"
+"$LODE" run "$SRC/config/kawato_planar.yaml" --clock sim --duration 5 --no-telemetry --no-local-control --quiet \
+  --record "$TMP/short.h5" >"$TMP/short.out" 2>&1
+check_rc "a 5 s recording" 0 $? "$TMP/short.out"
+echo "recordings: $(du -h "$TMP/long.h5" | cut -f1), $(du -h "$TMP/short.h5" | cut -f1)"
+
+start=$(date +%s.%N)
+limited "$LODE" replay "$TMP/long.h5" --quiet --output "$TMP/long_replay.h5" >"$TMP/replay_long.out" 2>&1
+check_rc "replay of the 300 s recording under 200 MiB: refused" 1 $? "$TMP/replay_long.out"
+seconds=$(awk -v s="$start" -v e="$(date +%s.%N)" 'BEGIN { printf "%.2f", e - s }')
+contains "it names the file and what it needs" "$TMP/replay_long.out" \
+  "lode: replay: .*long\.h5 \(19[0-9] MB\) needs about 4[0-9][0-9] MB of memory"
+contains "and what is left" "$TMP/replay_long.out" "this process has [0-9]+ MB left"
+if [ ! -e "$TMP/long_replay.h5" ]; then ok "nothing replayed (no output file), ${seconds} s"; else bad "an output file was written"; fi
+if grep -q "bad_alloc" "$TMP/replay_long.out"; then bad "std::bad_alloc reported"; fi
+
+limited "$LODE" plot "$TMP/long.h5" -o "$TMP/long.html" >"$TMP/plot_long.out" 2>&1
+check_rc "plot of the 300 s recording under 200 MiB: refused" 1 $? "$TMP/plot_long.out"
+contains "with the figures" "$TMP/plot_long.out" \
+  "lode: plot: .*long\.h5 needs about [0-9]+ MB of memory .*; this process has [0-9]+ MB left"
+
+printf 'pipeline: replay_only\nrate_hz: 800\nblocks:\n  stage:\n    plugin: io.replay\n    recording: long.h5\n' \
+  >"$TMP/io_replay.yaml"
+# The reader alone holds about 185 MB of it: under 150 MiB.
+LIMIT=$((150 * 1024 * 1024)) limited "$LODE" check "$TMP/io_replay.yaml" >"$TMP/check_long.out" 2>&1
+check_rc "io.replay of the 300 s recording under 150 MiB: refused" 2 $? "$TMP/check_long.out"
+contains "by the recording's reader, with its figures" "$TMP/check_long.out" \
+  "long\.h5': reading its 13 series takes about 1[0-9][0-9] MB of memory and this process has 1[0-9][0-9] MB left"
+
+limited "$LODE" replay "$TMP/short.h5" --quiet --output "$TMP/short_replay.h5" >"$TMP/replay_short.out" 2>&1
+check_rc "replay of the 5 s recording under 200 MiB" 0 $? "$TMP/replay_short.out"
+contains "bit-identical" "$TMP/replay_short.out" "^bit-identical: 13 series x 4000 cycles"
+exit $fail
