@@ -16,7 +16,9 @@ take_private_domain
 sed -e "s/^  domain: 0/  domain: $DOMAIN/" -e "s/^realtime: .*/realtime: { overrun_policy: catch_up }/" \
     "$SRC/config/kawato_planar.yaml" >"$TMP/p.yaml"
 # Ports made from here on are this test's: the domain is private, but a process that used it
-# before (and died, or ran an older build) may have left its port files in /dev/shm.
+# before (and died, or ran an older build) may have left its port files in /dev/shm, which the
+# pipeline would take over as they are (their times and settings those of that process).
+"$PY" "$(dirname "$0")/shm_port_settings.py" --remove-stale "$DOMAIN" >"$TMP/stale.txt"
 STARTED=$(date +%s.%N)
 "$LODE" run "$TMP/p.yaml" --clock real --duration 300 --quiet >"$TMP/run.log" 2>&1 &
 RUN=$!

@@ -11,8 +11,17 @@ offset, so padding before them does not matter.
 Only ports created (or written) at or after SINCE (seconds since the epoch) when it is given:
 a port file outlives a process that died, and its settings are that process's.
 
+--remove-stale DOMAIN removes the port files of DOMAIN that no process listens on (a listener
+holds an flock on fastrtps_port<N>_el; a process that exits, even cleanly, may leave the port
+file behind). Fast DDS 2.9 takes such a file over as it is, without writing it again, so its
+times, and the settings in it, stay those of the process that made it: a test of what this
+build writes removes them first. Only for a domain no other process uses (the tests' private
+domains): a port being created is not yet locked.
+
 usage: shm_port_settings.py DOMAIN [SINCE]
+       shm_port_settings.py --remove-stale DOMAIN
 """
+import fcntl
 import glob
 import os
 import struct
@@ -33,14 +42,47 @@ def settings(path, port):
     return None
 
 
-def main():
-    domain = int(sys.argv[1])
-    since = float(sys.argv[2]) if len(sys.argv) > 2 else 0.0
+def domain_ports(domain):
+    """(port, path) of every port file of DOMAIN in /dev/shm."""
     first, last = 7400 + 250 * domain, 7400 + 250 * (domain + 1)
     for path in sorted(glob.glob("/dev/shm/fastrtps_port*")):
         name = os.path.basename(path)[len("fastrtps_port"):]
-        if not name.isdigit() or not first <= int(name) < last:
-            continue
+        if name.isdigit() and first <= int(name) < last:
+            yield int(name), path
+
+
+def remove_stale(domain):
+    for port, path in domain_ports(domain):
+        lock = path + "_el"
+        try:
+            fd = os.open(lock, os.O_RDWR)
+        except FileNotFoundError:
+            fd = None
+        try:
+            if fd is not None:
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                except BlockingIOError:
+                    continue  # a listener holds it
+            for stale in (path, lock):
+                try:
+                    os.unlink(stale)
+                    print("removed", stale)
+                except FileNotFoundError:
+                    pass
+        finally:
+            if fd is not None:
+                os.close(fd)
+
+
+def main():
+    if sys.argv[1] == "--remove-stale":
+        remove_stale(int(sys.argv[2]))
+        return
+    domain = int(sys.argv[1])
+    since = float(sys.argv[2]) if len(sys.argv) > 2 else 0.0
+    for port, path in domain_ports(domain):
+        name = str(port)
         status = os.stat(path)
         if max(status.st_mtime, status.st_ctime) < since:
             continue
