@@ -54,22 +54,10 @@ struct OutputDigest::XxhState {
 };
 
 OutputDigest::OutputDigest(const std::vector<SignalRef>& signals, DigestAlgorithm algorithm)
-    : algorithm_(algorithm), signals_(signals) {
-  std::size_t values = 0;
-  bool contiguous = true;
-  const double* next = signals_.empty() ? nullptr : signals_.front().data;
-  for (const auto& s : signals_) {
-    if (s.size() == 0) continue;
-    contiguous = contiguous && s.data == next;
-    next = s.data + s.size();
-    values += s.size();
-  }
-  cycle_bytes_ = values * sizeof(double);
-  if (contiguous && values > 0) {
-    contiguous_ = reinterpret_cast<const unsigned char*>(signals_.front().data);
-  } else {
-    gather_.assign(values, 0.0);
-  }
+    : algorithm_(algorithm), spans_(signals) {
+  cycle_bytes_ = spans_.values() * sizeof(double);
+  contiguous_ = reinterpret_cast<const unsigned char*>(spans_.contiguous());
+  if (contiguous_ == nullptr) gather_.assign(spans_.values(), 0.0);
   if (algorithm_ == DigestAlgorithm::xxh3_64) {
     xxh_ = std::make_unique<XxhState>();
     if (xxh_->state == nullptr) throw std::bad_alloc();
@@ -91,11 +79,7 @@ void OutputDigest::after_cycle(const Tick&) noexcept {
   if (cycle_bytes_ == 0) return;
   const unsigned char* bytes = contiguous_;
   if (bytes == nullptr) {
-    double* to = gather_.data();
-    for (const auto& s : signals_) {
-      std::memcpy(to, s.data, s.size() * sizeof(double));
-      to += s.size();
-    }
+    spans_.copy_to(gather_.data());
     bytes = reinterpret_cast<const unsigned char*>(gather_.data());
   }
   if (xxh_)

@@ -59,9 +59,10 @@ class OutputDigest final : public CycleHook {
  private:
   struct XxhState;
   DigestAlgorithm algorithm_;
-  std::vector<SignalRef> signals_;
+  SignalSpans spans_;
   // Every output in one block of memory (the pipeline's arena): hashed in place. Otherwise
-  // each cycle's outputs are gathered into gather_ first, so the update is still one call.
+  // each cycle's outputs are gathered into gather_ first (a copy per run of adjacent
+  // signals), so the update is still one call.
   const unsigned char* contiguous_ = nullptr;
   std::size_t cycle_bytes_ = 0;
   std::vector<double> gather_;

@@ -361,10 +361,11 @@ int replay(const Args& args) {
     // Measured: a replay's peak is about twice the recording's size (the recording and each
     // replayed file, read back to check it, held whole), an HTML report's about 1.5 times the
     // files it plots more.
-    const double size = static_cast<double>(files_bytes({a.recording}));
+    const std::uint64_t bytes = files_bytes({a.recording});
+    const double size = static_cast<double>(bytes);
     double needed = 2.1 * size;
     if (fs::path(a.report).extension() == ".html") needed += 1.6 * size * static_cast<double>(1 + a.configs.size());
-    if (!enough_memory("replay", a.recording + " (" + format_bytes(files_bytes({a.recording})) + ")",
+    if (!enough_memory("replay", a.recording + " (" + format_bytes(bytes) + ")",
                        static_cast<std::uint64_t>(needed),
                        "a replay holds the recording and reads each replayed file back beside it"))
       return kExitFault;

@@ -44,25 +44,17 @@ std::size_t total_size(const std::vector<SignalRef>& signals) {
 }  // namespace
 
 SignalTap::SignalTap(std::vector<SignalRef> signals, std::size_t capacity_records)
-    : signals_(std::move(signals)), ring_(total_size(signals_), capacity_records) {
+    : signals_(std::move(signals)), spans_(signals_), ring_(total_size(signals_), capacity_records) {
   for (const auto& s : signals_) {
     columns_.push_back(stride_);
     stride_ += s.size();
-    if (s.size() == 0) continue;
-    if (!spans_.empty() && spans_.back().data + spans_.back().size == s.data)
-      spans_.back().size += s.size();
-    else
-      spans_.push_back({s.data, s.size()});
   }
 }
 
 void SignalTap::capture(std::uint64_t cycle, std::int64_t time_ns) noexcept {
   double* values = ring_.claim();
   if (values == nullptr) return;  // full: counted by the ring
-  for (const Span& s : spans_) {
-    std::memcpy(values, s.data, s.size * sizeof(double));
-    values += s.size;
-  }
+  spans_.copy_to(values);
   SampleHeader header;
   header.cycle = cycle;
   header.stamp_ns = time_ns;

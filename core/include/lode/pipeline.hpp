@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstdint>
+#include <cstring>
 #include <memory>
 #include <optional>
 #include <string>
@@ -67,6 +68,44 @@ struct SignalRef {
   const Elements* elements = nullptr;
   [[nodiscard]] std::size_t size() const { return elements ? elements->size() : 0; }
   [[nodiscard]] std::string name() const { return block + "." + port; }
+};
+
+/// A list of signals as runs of adjacent storage (the outputs of one block, of blocks next to
+/// each other in the pipeline's arena), for the hooks that take every signal's values each
+/// cycle: one copy per run instead of one per signal, none when they are all one run.
+class SignalSpans {
+ public:
+  explicit SignalSpans(const std::vector<SignalRef>& signals) {
+    for (const auto& s : signals) {
+      if (s.size() == 0) continue;
+      values_ += s.size();
+      if (!spans_.empty() && spans_.back().data + spans_.back().size == s.data)
+        spans_.back().size += s.size();
+      else
+        spans_.push_back({s.data, s.size()});
+    }
+  }
+  /// Every signal's values, in the order given, to `out` (room for values()); past the last.
+  double* copy_to(double* out) const noexcept {
+    for (const Span& s : spans_) {
+      std::memcpy(out, s.data, s.size * sizeof(double));
+      out += s.size;
+    }
+    return out;
+  }
+  /// Where the values are when all the signals are one run in the order given, else nullptr.
+  [[nodiscard]] const double* contiguous() const noexcept {
+    return spans_.size() == 1 ? spans_.front().data : nullptr;
+  }
+  [[nodiscard]] std::size_t values() const noexcept { return values_; }
+
+ private:
+  struct Span {
+    const double* data;
+    std::size_t size;
+  };
+  std::vector<Span> spans_;
+  std::size_t values_ = 0;
 };
 
 /// What `lode run` shows live and analyses at the end (the `monitor:` section).

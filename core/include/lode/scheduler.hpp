@@ -79,13 +79,7 @@ class SignalTap final : public CycleHook {
 
  private:
   std::vector<SignalRef> signals_;
-  /// The signals as runs of adjacent storage (the outputs of one block, of blocks next to each
-  /// other in the arena): one copy per run instead of one per signal.
-  struct Span {
-    const double* data;
-    std::size_t size;
-  };
-  std::vector<Span> spans_;
+  SignalSpans spans_;
   std::vector<std::size_t> columns_;
   std::size_t stride_ = 2;
   SampleRing ring_;  ///< values of every signal per cycle; the header carries cycle and time

@@ -65,15 +65,16 @@ struct Recorder::Impl {
     s.time_s.resize(count);
     for (hsize_t row = 0; row < count; ++row) s.time_s[row] = static_cast<double>(s.stamp_ns[row]) * 1e-9;
     // A file laid out at its final length (a replay's) is written a whole chunk at a time, as
-    // the rows are in memory (append_whole_chunk()); its last rows, which start a chunk they do
-    // not fill, padded with the fill values to a whole one. Not a recording of unknown length
-    // (lode run --record, lode record): on a disk that filled, its file then held rows that
-    // were never written, read back as rows (not as the fill values that tell a reader they
-    // are missing), where H5Dwrite leaves none.
-    const bool direct = expected_rows > 0;
-    const bool last_chunk =
-        direct && count < s.chunk_rows && s.rows_written % s.chunk_rows == 0 && s.rows_written + count == s.extent;
-    if (last_chunk) {
+    // the rows are in memory (write_whole_chunk(), where the host stores the file's
+    // little-endian types as they are); its last rows, which start a chunk they do not fill,
+    // padded with the fill values to a whole one. Not a recording of unknown length (lode run
+    // --record, lode record): on a disk that filled, its file then held rows that were never
+    // written, read back as rows (not as the fill values that tell a reader they are missing),
+    // where H5Dwrite leaves none.
+    const bool whole_chunk = std::endian::native == std::endian::little && expected_rows > 0 &&
+                             s.rows_written % s.chunk_rows == 0 &&
+                             (count == s.chunk_rows || s.rows_written + count == s.extent);
+    if (whole_chunk && count < s.chunk_rows) {
       const std::size_t whole = static_cast<std::size_t>(s.chunk_rows);
       s.cycle.resize(whole, kMissingCycle);
       s.stamp_ns.resize(whole, kMissingStamp);
@@ -81,12 +82,11 @@ struct Recorder::Impl {
       s.time_s.resize(whole, kMissingValue);
       for (auto& column : s.values) column.resize(whole, kMissingValue);
     }
-    // Every column's elements are 8 bytes, as append_whole_chunk() writes them.
+    // Every column's elements are 8 bytes, as write_whole_chunk() writes them.
     static_assert(sizeof(std::uint64_t) == 8 && sizeof(std::int64_t) == 8 && sizeof(double) == 8);
     const auto append = [&](hid_t column, hid_t memory_type, const void* data) {
-      return (direct && count == s.chunk_rows) || last_chunk
-                 ? append_whole_chunk(column, s.rows_written, count, s.chunk_rows, memory_type, data, s.extent)
-                 : append_to_column(column, s.rows_written, count, memory_type, data, s.extent);
+      return whole_chunk ? write_whole_chunk(column, s.rows_written, count, s.chunk_rows, data, s.extent)
+                         : append_to_column(column, s.rows_written, count, memory_type, data, s.extent);
     };
     bool ok = append(s.cycle_column.get(), H5T_NATIVE_UINT64, s.cycle.data()) &&
               append(s.stamp_column.get(), H5T_NATIVE_INT64, s.stamp_ns.data()) &&
