@@ -876,6 +876,28 @@ TEST(Commands, ABurstOfAThousandIsAnsweredOrPushedBackNeverLost) {
            reader->get_subscription_matched_status(r) == ReturnCode_t::RETCODE_OK && r.current_count >= 1;
   }, 10s));
 
+  // Both sides matched as this console sees them does not mean the pipeline has matched the
+  // console's reply reader: each participant learns of the other's endpoints on its own
+  // schedule. Replies written before that reach this reader only from the writer's
+  // transient-local history, whose last 256 cannot hold a burst of 1000 (4 of 30 loaded runs
+  // got exactly those 256). A console that has had one answer knows the way back is open.
+  constexpr std::uint64_t kProbeId = 1'000'000;
+  {
+    lode::msg::Command probe;
+    probe.client("burst-console");
+    probe.id(kProbeId);
+    probe.kind("status");
+    ASSERT_TRUE(writer->write(&probe));
+    ASSERT_TRUE(wait_for([&] {
+      lode::msg::Reply r;
+      fdds::SampleInfo info;
+      while (reader->take_next_sample(&r, &info) == ReturnCode_t::RETCODE_OK) {
+        if (info.valid_data && r.client() == "burst-console" && r.id() == kProbeId) return true;
+      }
+      return false;
+    }, 10s)) << "the probe command was never answered";
+  }
+
   constexpr std::uint64_t kCommands = 1000;
   std::set<std::uint64_t> refused_at_write;
   const auto start = std::chrono::steady_clock::now();
