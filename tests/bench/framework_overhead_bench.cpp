@@ -21,6 +21,10 @@
 // and report the median of the per-pair ratios: a disturbance hits one pair, not the figure
 // (overhead_percent = 100 * (median(scheduler / baseline) - 1); the quartiles beside it).
 //
+// "kawato_planar/digest_in_cycle" pairs the scheduler with and without the digest the same way:
+// what the digest costs inside a real cycle, where its code and state are no longer hot in the
+// caches and branch predictors as they are in lode_digest_bench's loop.
+//
 // "kawato_planar/instructions" runs kInstructionCycles cycles of each way inside its own
 // function for callgrind to count (tests/bench/framework_overhead_instructions.sh): the
 // deterministic figure, the same on any host.
@@ -257,50 +261,63 @@ double quantile(std::vector<double> v, double q) {
   return v[static_cast<std::size_t>(k)];
 }
 
-/// kPairs pairs of kPairBatch-cycle batches, `baseline` (by hand or direct) and the scheduler,
-/// the first of each pair alternating; the median of the per-pair ratios.
-template <typename Baseline>
-void overhead(benchmark::State& state, Baseline& baseline, bool with_digest, const char* baseline_name) {
-  Loaded b;
-  Scheduled scheduled(*b.pipeline, with_digest);
-  std::vector<double> baseline_ns, scheduled_ns, ratios;
+/// kPairs pairs of kPairBatch-cycle batches, `baseline` and `measured`, the first of each pair
+/// alternating; the medians of the per-pair ratios and differences.
+template <typename Baseline, typename Measured>
+void overhead(benchmark::State& state, Baseline& baseline, Measured& measured, const char* baseline_name,
+              const char* measured_name) {
+  std::vector<double> baseline_ns, measured_ns, ratios, differences;
   for (int warm = 0; warm < 8; ++warm) {
     batch_cpu_ns(baseline, state);
-    batch_cpu_ns(scheduled, state);
+    batch_cpu_ns(measured, state);
   }
   bool baseline_first = true;
   for (auto _ : state) {
-    double base = 0.0, sched = 0.0;
+    double base = 0.0, meas = 0.0;
     if (baseline_first) {
       base = batch_cpu_ns(baseline, state);
-      sched = batch_cpu_ns(scheduled, state);
+      meas = batch_cpu_ns(measured, state);
     } else {
-      sched = batch_cpu_ns(scheduled, state);
+      meas = batch_cpu_ns(measured, state);
       base = batch_cpu_ns(baseline, state);
     }
     baseline_first = !baseline_first;
     baseline_ns.push_back(base / kPairBatch);
-    scheduled_ns.push_back(sched / kPairBatch);
-    ratios.push_back(sched / base);
+    measured_ns.push_back(meas / kPairBatch);
+    ratios.push_back(meas / base);
+    differences.push_back((meas - base) / kPairBatch);
   }
   state.counters[std::string(baseline_name) + "_ns_per_cycle"] = quantile(baseline_ns, 0.5);
-  state.counters["scheduler_ns_per_cycle"] = quantile(scheduled_ns, 0.5);
+  state.counters[std::string(measured_name) + "_ns_per_cycle"] = quantile(measured_ns, 0.5);
   state.counters["overhead_percent"] = 100.0 * (quantile(ratios, 0.5) - 1.0);
   state.counters["overhead_q1_percent"] = 100.0 * (quantile(ratios, 0.25) - 1.0);
   state.counters["overhead_q3_percent"] = 100.0 * (quantile(ratios, 0.75) - 1.0);
+  state.counters["added_ns_per_cycle"] = quantile(differences, 0.5);
 }
 
 void BM_overhead(benchmark::State& state, bool with_digest) {
   if (!same_outputs(state)) return;
-  Loaded a;
+  Loaded a, b;
   Direct direct(*a.pipeline);
-  overhead(state, direct, with_digest, "direct");
+  Scheduled scheduled(*b.pipeline, with_digest);
+  overhead(state, direct, scheduled, "direct", "scheduler");
 }
 
 void BM_overhead_by_hand(benchmark::State& state, bool with_digest) {
   if (!same_outputs(state)) return;
   ByHand by_hand;
-  overhead(state, by_hand, with_digest, "by_hand");
+  Loaded b;
+  Scheduled scheduled(*b.pipeline, with_digest);
+  overhead(state, by_hand, scheduled, "by_hand", "scheduler");
+}
+
+/// What the output digest adds to a cycle where `lode run` computes it: the scheduler with
+/// and without it, paired as above (added_ns_per_cycle: the median per-pair difference).
+void BM_digest_in_cycle(benchmark::State& state) {
+  if (!same_outputs(state)) return;
+  Loaded a, b;
+  Scheduled plain(*a.pipeline, false), digested(*b.pipeline, true);
+  overhead(state, plain, digested, "scheduler", "scheduler_digest");
 }
 
 // One function per way, each running kInstructionCycles cycles, for callgrind's
@@ -347,6 +364,10 @@ BENCHMARK_CAPTURE(BM_overhead_by_hand, overhead_by_hand, false)
     ->Iterations(kPairs);
 BENCHMARK_CAPTURE(BM_overhead_by_hand, overhead_by_hand_digest, true)
     ->Name("kawato_planar/overhead_vs_by_hand+digest")
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(kPairs);
+BENCHMARK(BM_digest_in_cycle)
+    ->Name("kawato_planar/digest_in_cycle")
     ->Unit(benchmark::kMillisecond)
     ->Iterations(kPairs);
 BENCHMARK(BM_instructions)->Name("kawato_planar/instructions")->Unit(benchmark::kMillisecond)->Iterations(1);
