@@ -110,16 +110,17 @@ struct BitCompare {
   std::size_t cycles = 0;
   std::string first_difference;  ///< empty when identical
   std::vector<std::string> only_in_one;
+  /// One line per series that differs: its largest difference relative to the element's
+  /// largest recorded magnitude, where and when ("largest relative difference 2.1e-16 in
+  /// ukf.state.gap at cycle 812"), so a last-bit reordering (~1e-16 .. 1e-10) tells itself
+  /// apart from a real change.
+  std::vector<std::string> largest_differences;
 };
 
-/// Compares two recordings series by series, bit for bit; the first difference is named.
-BitCompare compare_recordings(const record::Recording& recorded, const record::Recording& replayed);
-
-/// One line per series that differs: its largest difference relative to the element's
-/// largest recorded magnitude, where and when ("largest relative difference 2.1e-16 in
-/// ukf.state.gap at cycle 812"), so a last-bit reordering (~1e-16 .. 1e-10) tells itself
-/// apart from a real change.
-std::vector<std::string> largest_differences(const record::Recording& recorded, const record::Recording& replayed);
+/// The recording at `recorded` against the replay at `replayed`, series by series, bit for
+/// bit; the first difference is named. Reads one series of each file at a time, so what it
+/// holds is the largest series twice, not two whole recordings.
+Expected<BitCompare> compare_recording_files(const std::string& recorded, const std::string& replayed);
 
 struct EstimatorStats {
   std::string signal;  ///< block.port

@@ -13,97 +13,109 @@
 
 namespace lode::cli {
 
-BitCompare compare_recordings(const record::Recording& recorded, const record::Recording& replayed) {
-  BitCompare r;
-  std::map<std::string, const record::SeriesData*> by_name;
-  for (const auto& s : replayed.series) by_name[s.info.name] = &s;
-  std::set<std::string> seen;
-  for (const auto& a : recorded.series) {
-    auto it = by_name.find(a.info.name);
-    if (it == by_name.end()) {
-      r.only_in_one.push_back(a.info.name + " (only in the recording)");
-      continue;
-    }
-    seen.insert(a.info.name);
-    const auto& b = *it->second;
-    ++r.series;
-    r.cycles = std::max(r.cycles, a.rows());
-    if (!r.first_difference.empty()) continue;
-    if (a.width() != b.width() || a.info.names != b.info.names) {
-      r.first_difference = "series " + a.info.name + ": different elements";
-      continue;
-    }
-    if (a.rows() != b.rows()) {
-      r.first_difference = "series " + a.info.name + ": " + std::to_string(a.rows()) + " cycles recorded, " +
-                           std::to_string(b.rows()) + " replayed";
-      continue;
-    }
-    for (std::size_t k = 0; k < a.rows() && r.first_difference.empty(); ++k) {
-      if (a.cycle[k] != b.cycle[k]) {
-        r.first_difference = "series " + a.info.name + ": row " + std::to_string(k) + " is cycle " +
-                             std::to_string(a.cycle[k]) + " recorded, " + std::to_string(b.cycle[k]) + " replayed";
-        break;
-      }
-      const double* va = a.values.data() + k * a.width();
-      const double* vb = b.values.data() + k * b.width();
-      if (std::memcmp(va, vb, a.width() * sizeof(double)) == 0) continue;
-      for (std::size_t i = 0; i < a.width(); ++i) {
-        if (std::memcmp(va + i, vb + i, sizeof(double)) == 0) continue;
-        char buf[320];
-        std::snprintf(buf, sizeof buf, "series %s, cycle %llu, element %s: recorded %.17g, replayed %.17g",
-                      a.info.name.c_str(), static_cast<unsigned long long>(a.cycle[k]), a.info.names[i].c_str(),
-                      va[i], vb[i]);
-        r.first_difference = buf;
-        break;
-      }
+namespace {
+
+/// Recorded series `a` against replayed `b` (same name): "" when bit-identical, else the first
+/// difference.
+std::string first_difference(const record::SeriesData& a, const record::SeriesData& b) {
+  if (a.width() != b.width() || a.info.names != b.info.names) return "series " + a.info.name + ": different elements";
+  if (a.rows() != b.rows())
+    return "series " + a.info.name + ": " + std::to_string(a.rows()) + " cycles recorded, " +
+           std::to_string(b.rows()) + " replayed";
+  for (std::size_t k = 0; k < a.rows(); ++k) {
+    if (a.cycle[k] != b.cycle[k])
+      return "series " + a.info.name + ": row " + std::to_string(k) + " is cycle " + std::to_string(a.cycle[k]) +
+             " recorded, " + std::to_string(b.cycle[k]) + " replayed";
+    const double* va = a.values.data() + k * a.width();
+    const double* vb = b.values.data() + k * b.width();
+    if (std::memcmp(va, vb, a.width() * sizeof(double)) == 0) continue;
+    for (std::size_t i = 0; i < a.width(); ++i) {
+      if (std::memcmp(va + i, vb + i, sizeof(double)) == 0) continue;
+      char buf[320];
+      std::snprintf(buf, sizeof buf, "series %s, cycle %llu, element %s: recorded %.17g, replayed %.17g",
+                    a.info.name.c_str(), static_cast<unsigned long long>(a.cycle[k]), a.info.names[i].c_str(), va[i],
+                    vb[i]);
+      return buf;
     }
   }
-  for (const auto& s : replayed.series)
-    if (!seen.count(s.info.name)) r.only_in_one.push_back(s.info.name + " (only in the replay)");
-  return r;
+  return "";
 }
 
-std::vector<std::string> largest_differences(const record::Recording& recorded, const record::Recording& replayed) {
-  std::vector<std::string> lines;
-  std::map<std::string, const record::SeriesData*> by_name;
-  for (const auto& s : replayed.series) by_name[s.info.name] = &s;
-  for (const auto& a : recorded.series) {
-    auto it = by_name.find(a.info.name);
-    if (it == by_name.end()) continue;
-    const auto& b = *it->second;
-    if (a.width() != b.width() || a.rows() != b.rows()) continue;  // named by the first difference
-    const std::size_t width = a.width();
-    // Each element's scale: its largest recorded magnitude (an element that crosses zero,
-    // such as a velocity, has no meaningful element-by-element relative difference there).
-    std::vector<double> scale(width, 0.0);
-    for (std::size_t k = 0; k < a.rows(); ++k)
-      for (std::size_t i = 0; i < width; ++i) scale[i] = std::max(scale[i], std::abs(a.values[k * width + i]));
-    double worst = 0.0;
-    std::size_t worst_row = 0, worst_element = 0;
-    bool differs = false;
-    for (std::size_t k = 0; k < a.rows(); ++k) {
-      for (std::size_t i = 0; i < width; ++i) {
-        const double x = a.values[k * width + i], y = b.values[k * width + i];
-        if (std::memcmp(&x, &y, sizeof x) == 0) continue;
-        const double relative = scale[i] > 0.0 ? std::abs(x - y) / scale[i] : std::abs(x - y);
-        // NaN against a number, or a different NaN: as large as a difference gets.
-        const double d = std::isnan(relative) ? std::numeric_limits<double>::infinity() : relative;
-        if (!differs || d > worst) {
-          worst = d;
-          worst_row = k;
-          worst_element = i;
-        }
-        differs = true;
+/// The largest difference of two series of one shape ("" when none differ or the shapes do:
+/// the first difference names that).
+std::string largest_difference(const record::SeriesData& a, const record::SeriesData& b) {
+  if (a.width() != b.width() || a.rows() != b.rows()) return "";
+  const std::size_t width = a.width();
+  // Each element's scale: its largest recorded magnitude (an element that crosses zero,
+  // such as a velocity, has no meaningful element-by-element relative difference there).
+  std::vector<double> scale(width, 0.0);
+  for (std::size_t k = 0; k < a.rows(); ++k)
+    for (std::size_t i = 0; i < width; ++i) scale[i] = std::max(scale[i], std::abs(a.values[k * width + i]));
+  double worst = 0.0;
+  std::size_t worst_row = 0, worst_element = 0;
+  bool differs = false;
+  for (std::size_t k = 0; k < a.rows(); ++k) {
+    for (std::size_t i = 0; i < width; ++i) {
+      const double x = a.values[k * width + i], y = b.values[k * width + i];
+      if (std::memcmp(&x, &y, sizeof x) == 0) continue;
+      const double relative = scale[i] > 0.0 ? std::abs(x - y) / scale[i] : std::abs(x - y);
+      // NaN against a number, or a different NaN: as large as a difference gets.
+      const double d = std::isnan(relative) ? std::numeric_limits<double>::infinity() : relative;
+      if (!differs || d > worst) {
+        worst = d;
+        worst_row = k;
+        worst_element = i;
       }
+      differs = true;
     }
-    if (!differs) continue;
-    char buf[320];
-    std::snprintf(buf, sizeof buf, "largest relative difference %.2g in %s.%s at cycle %llu", worst,
-                  a.info.name.c_str(), a.info.names[worst_element].c_str(),
-                  static_cast<unsigned long long>(a.cycle[worst_row]));
-    lines.emplace_back(buf);
   }
-  return lines;
+  if (!differs) return "";
+  char buf[320];
+  std::snprintf(buf, sizeof buf, "largest relative difference %.2g in %s.%s at cycle %llu", worst, a.info.name.c_str(),
+                a.info.names[worst_element].c_str(), static_cast<unsigned long long>(a.cycle[worst_row]));
+  return buf;
+}
+
+/// The names of a recording's series in file order (none of their data is read).
+Expected<std::vector<std::string>> series_names(const std::string& path) {
+  auto listing = record::read_recording(path, {"none", [](const std::string&, const std::string&) { return false; }});
+  if (!listing) return listing.status();
+  return std::move(listing->series_not_read);
+}
+
+}  // namespace
+
+Expected<BitCompare> compare_recording_files(const std::string& recorded, const std::string& replayed) {
+  auto recorded_names = series_names(recorded);
+  if (!recorded_names) return recorded_names.status();
+  auto replayed_names = series_names(replayed);
+  if (!replayed_names) return replayed_names.status();
+  const std::set<std::string> in_replay(replayed_names->begin(), replayed_names->end());
+  BitCompare r;
+  std::set<std::string> seen;
+  for (const auto& name : *recorded_names) {
+    if (!in_replay.count(name)) {
+      r.only_in_one.push_back(name + " (only in the recording)");
+      continue;
+    }
+    seen.insert(name);
+    auto a = record::read_recording(recorded, record::SeriesSelection::one(name));
+    if (!a) return a.status();
+    auto b = record::read_recording(replayed, record::SeriesSelection::one(name));
+    if (!b) return b.status();
+    if (a->series.size() != 1 || b->series.size() != 1) return Status::error("series " + name + " could not be read");
+    const record::SeriesData& sa = a->series.front();
+    const record::SeriesData& sb = b->series.front();
+    ++r.series;
+    r.cycles = std::max(r.cycles, sa.rows());
+    const std::string difference = first_difference(sa, sb);
+    if (difference.empty()) continue;
+    if (r.first_difference.empty()) r.first_difference = difference;
+    if (std::string line = largest_difference(sa, sb); !line.empty()) r.largest_differences.push_back(std::move(line));
+  }
+  for (const auto& name : *replayed_names)
+    if (!seen.count(name)) r.only_in_one.push_back(name + " (only in the replay)");
+  return r;
 }
 
 void estimator_statistics(const CompareHook& hook, const Pipeline& pipeline, int reference_index,

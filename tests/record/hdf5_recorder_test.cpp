@@ -276,6 +276,65 @@ TEST(Hdf5RecorderTest, SharedReadIsOneCopyUntilTheFileChanges) {
   EXPECT_FALSE(read_recording_shared(scratch_path("missing.h5"))) << "a missing file must be an error";
 }
 
+// A replay reads a recording's raw inputs, io.replay one block's series, the bit-for-bit check
+// one series at a time: each gets those series whole and the names of the rest, the memory
+// check counts only what is read, and shared copies of different selections are different.
+TEST(Hdf5RecorderTest, ASelectionReadsItsSeriesAndNamesTheRest) {
+  const std::string path = scratch_path("selection.h5");
+  {
+    auto recorder = Recorder::create(path, "lode run");
+    ASSERT_TRUE(recorder) << recorder.error();
+    auto counts = (*recorder)->add_series({"stage.counts", "", "raw", {"a", "b"}, {"", ""}, 800.0, 800.0, 1});
+    auto pose = (*recorder)->add_series({"kf.pose", "", "signal", {"x", "y", "z"}, {"m", "m", "m"}, 800.0, 800.0, 1});
+    auto truth = (*recorder)->add_series({"stage.truth", "", "raw", {"x"}, {"m"}, 800.0, 800.0, 1});
+    ASSERT_TRUE(counts && pose && truth);
+    for (std::uint64_t cycle = 0; cycle < 1000; ++cycle) {
+      const double v[3] = {static_cast<double>(cycle), 0.5, -1.0};
+      (*recorder)->append(*counts, cycle, 0, 0, v);
+      (*recorder)->append(*pose, cycle, 0, 0, v);
+      (*recorder)->append(*truth, cycle, 0, 0, v);
+    }
+    ASSERT_TRUE((*recorder)->close());
+  }
+  const auto names = [](const Recording& r) {
+    std::vector<std::string> out;
+    for (const auto& s : r.series) out.push_back(s.info.name);
+    return out;
+  };
+  auto raw = read_recording(path, SeriesSelection::raw());
+  ASSERT_TRUE(raw) << raw.error();
+  EXPECT_EQ(names(*raw), (std::vector<std::string>{"stage.counts", "stage.truth"}));
+  EXPECT_EQ(raw->series_not_read, std::vector<std::string>{"kf.pose"});
+  ASSERT_EQ(raw->series.front().rows(), 1000U);
+  EXPECT_EQ(raw->series.front().values[2 * 999], 999.0);
+
+  auto block = read_recording(path, SeriesSelection::block("kf"));
+  ASSERT_TRUE(block) << block.error();
+  EXPECT_EQ(names(*block), std::vector<std::string>{"kf.pose"});
+  EXPECT_EQ(block->series_not_read, (std::vector<std::string>{"stage.counts", "stage.truth"}));
+  auto one = read_recording(path, SeriesSelection::one("stage.truth"));
+  ASSERT_TRUE(one) << one.error();
+  EXPECT_EQ(names(*one), std::vector<std::string>{"stage.truth"});
+  EXPECT_EQ(names(*read_recording(path)), (std::vector<std::string>{"stage.counts", "kf.pose", "stage.truth"}));
+
+  // Rows x (3 time columns + values), plus the largest series' values once more.
+  auto raw_cost = read_cost(path, SeriesSelection::raw());
+  auto all_cost = read_cost(path, SeriesSelection::all());
+  ASSERT_TRUE(raw_cost && all_cost);
+  EXPECT_EQ(raw_cost->bytes, 1000U * 8 * ((3 + 2) + (3 + 1)) + 1000U * 8 * 2);
+  EXPECT_EQ(all_cost->bytes, 1000U * 8 * ((3 + 2) + (3 + 3) + (3 + 1)) + 1000U * 8 * 3);
+  EXPECT_EQ(all_cost->largest_series, 1000U * 8 * (6 + 3));
+  EXPECT_EQ(all_cost->rows, 1000U);
+
+  auto shared_raw = read_recording_shared(path, SeriesSelection::raw());
+  auto shared_raw_again = read_recording_shared(path, SeriesSelection::raw());
+  auto shared_all = read_recording_shared(path);
+  ASSERT_TRUE(shared_raw && shared_raw_again && shared_all);
+  EXPECT_EQ(shared_raw->get(), shared_raw_again->get());
+  EXPECT_NE(shared_raw->get(), shared_all->get()) << "the raw selection was handed the whole recording's copy";
+  EXPECT_EQ((*shared_all)->series.size(), 3U);
+}
+
 // A recording written over a plain file replaces it with a new file (ext4 writes a file that
 // was truncated and rewritten out to disk inside its close); over a symbolic link or a file
 // with a second name, the file itself is rewritten, as a truncation did.

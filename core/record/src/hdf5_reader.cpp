@@ -217,8 +217,9 @@ Expected<SeriesData> read_series(hid_t signals, const std::string& name, std::ve
 /// (its cycle column's length) times its cycle, stamp and captured columns and its values,
 /// held until the end, plus the largest series' values once more (its columns, read before
 /// they are interleaved). Series it cannot size count for nothing: read_series() reports them.
-std::uint64_t memory_to_read(hid_t signals, const std::vector<std::string>& names) {
-  std::uint64_t held = 0, largest_values = 0;
+ReadCost memory_to_read(hid_t signals, const std::vector<std::string>& names) {
+  ReadCost cost;
+  std::uint64_t largest_values = 0;
   for (const auto& name : names) {
     Handle group(H5Gopen2(signals, name.c_str(), H5P_DEFAULT));
     if (!group.valid()) continue;
@@ -229,16 +230,61 @@ std::uint64_t memory_to_read(hid_t signals, const std::vector<std::string>& name
     const hssize_t rows = space.valid() ? H5Sget_simple_extent_npoints(space.get()) : -1;
     if (rows <= 0) continue;
     const std::uint64_t values = static_cast<std::uint64_t>(rows) * elements->size() * sizeof(double);
-    held += static_cast<std::uint64_t>(rows) * 3 * sizeof(std::uint64_t) + values;
+    const std::uint64_t held = static_cast<std::uint64_t>(rows) * 3 * sizeof(std::uint64_t) + values;
+    cost.bytes += held;
+    cost.largest_series = std::max(cost.largest_series, held + values);
+    cost.rows = std::max(cost.rows, static_cast<std::uint64_t>(rows));
     largest_values = std::max(largest_values, values);
   }
   H5Eclear2(H5E_DEFAULT);
-  return held + largest_values;
+  cost.bytes += largest_values;
+  return cost;
+}
+
+/// The `kind` attribute of series `name` ("" when it cannot be read: read_series says why).
+std::string series_kind(hid_t signals, const std::string& name) {
+  Handle group(H5Gopen2(signals, name.c_str(), H5P_DEFAULT));
+  auto kind = group.valid() ? read_text_attribute(group.get(), "kind") : Expected<std::string>(Status::error(""));
+  H5Eclear2(H5E_DEFAULT);
+  return kind ? *kind : std::string();
 }
 
 }  // namespace
 
-Expected<Recording> read_recording(const std::string& path) {
+SeriesSelection SeriesSelection::all() {
+  return {"all", [](const std::string&, const std::string&) { return true; }};
+}
+
+SeriesSelection SeriesSelection::raw() {
+  return {"raw", [](const std::string&, const std::string& kind) { return kind == "raw"; }};
+}
+
+SeriesSelection SeriesSelection::block(const std::string& block) {
+  return {"block " + block,
+          [prefix = block + "."](const std::string& name, const std::string&) { return name.rfind(prefix, 0) == 0; }};
+}
+
+SeriesSelection SeriesSelection::one(const std::string& series) {
+  return {"series " + series, [series](const std::string& name, const std::string&) { return name == series; }};
+}
+
+Expected<Recording> read_recording(const std::string& path) { return read_recording(path, SeriesSelection::all()); }
+
+Expected<ReadCost> read_cost(const std::string& path, const SeriesSelection& selection) {
+  silence_hdf5_errors();
+  const std::string where = "recording '" + path + "': ";
+  Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT));
+  if (!file.valid()) return Status::error(where + "cannot open: " + hdf5_message());
+  Handle signals(H5Gopen2(file.get(), "signals", H5P_DEFAULT));
+  if (!signals.valid()) return Status::error(where + "group /signals is missing");
+  std::vector<std::string> names;
+  if (H5Literate(signals.get(), H5_INDEX_NAME, H5_ITER_INC, nullptr, collect_link_name, &names) < 0)
+    return Status::error(where + "cannot list /signals: " + hdf5_message());
+  std::erase_if(names, [&](const std::string& name) { return !selection.wanted(name, series_kind(signals.get(), name)); });
+  return memory_to_read(signals.get(), names);
+}
+
+Expected<Recording> read_recording(const std::string& path, const SeriesSelection& selection) {
   silence_hdf5_errors();
   const std::string where = "recording '" + path + "': ";
   Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT));
@@ -268,9 +314,17 @@ Expected<Recording> read_recording(const std::string& path) {
       return Status::error(where + "cannot list /signals: " + hdf5_message());
     }
   }
-  // A recording is read whole: one too large for the memory left is refused with the figures,
+  std::vector<std::string> wanted;
+  for (auto& name : names) {
+    if (selection.wanted(name, series_kind(signals.get(), name)))
+      wanted.push_back(std::move(name));
+    else
+      recording.series_not_read.push_back(std::move(name));
+  }
+  names = std::move(wanted);
+  // What is read is read whole: too large for the memory left, it is refused with the figures,
   // before the reading fills the memory and the OOM killer ends this process (or another).
-  const std::uint64_t needed = memory_to_read(signals.get(), names);
+  const std::uint64_t needed = memory_to_read(signals.get(), names).bytes;
   if (const auto available = available_memory_bytes(); available && needed > *available) {
     return Status::error(where + "reading its " + std::to_string(names.size()) + " series takes about " +
                          format_bytes(needed) + " of memory and this process has " + format_bytes(*available) +
@@ -315,23 +369,28 @@ Expected<Recording> read_recording(const std::string& path) {
 namespace lode::record {
 
 Expected<std::shared_ptr<const Recording>> read_recording_shared(const std::string& path) {
+  return read_recording_shared(path, SeriesSelection::all());
+}
+
+Expected<std::shared_ptr<const Recording>> read_recording_shared(const std::string& path,
+                                                                 const SeriesSelection& selection) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) {
-    auto r = read_recording(path);  // says why it cannot be read
+    auto r = read_recording(path, selection);  // says why it cannot be read
     if (!r) return r.status();
     return std::shared_ptr<const Recording>(std::make_shared<Recording>(std::move(*r)));
   }
   // The file's identity and version: a file rewritten in between is read again.
   const std::string key = std::to_string(st.st_dev) + ":" + std::to_string(st.st_ino) + ":" +
                           std::to_string(st.st_size) + ":" + std::to_string(st.st_mtim.tv_sec) + "." +
-                          std::to_string(st.st_mtim.tv_nsec);
+                          std::to_string(st.st_mtim.tv_nsec) + ":" + selection.key;
   static std::mutex mutex;
   static std::map<std::string, std::weak_ptr<const Recording>> held;
   std::lock_guard lock(mutex);
   if (auto it = held.find(key); it != held.end()) {
     if (auto shared = it->second.lock()) return shared;
   }
-  auto r = read_recording(path);
+  auto r = read_recording(path, selection);
   if (!r) return r.status();
   std::shared_ptr<const Recording> shared = std::make_shared<Recording>(std::move(*r));
   std::erase_if(held, [](const auto& entry) { return entry.second.expired(); });

@@ -1,5 +1,6 @@
 #include "replay.hpp"
 
+#include <algorithm>
 #include <cstring>
 #include <filesystem>
 #include <set>
@@ -36,7 +37,15 @@ Status ReplayBoard::configure(ConfigureContext& ctx) {
   if (!params.ok()) return Status::error("invalid parameters");
   path_ = resolve(given, params.location("recording"));
 
-  auto shared = record::read_recording_shared(path_);
+  // Only the series played back are read: a board's raw inputs are a fraction of a recording
+  // of every signal. The raw ones (what `lode replay` reads too, so the two share one copy);
+  // another block's series, e.g. an estimator's output replayed as a measurement, by name.
+  const std::string prefix = block_ + ".";
+  const auto of_block = [&](const std::string& name) { return name.rfind(prefix, 0) == 0; };
+  auto shared = record::read_recording_shared(path_, record::SeriesSelection::raw());
+  if (shared && std::none_of((*shared)->series.begin(), (*shared)->series.end(),
+                             [&](const auto& s) { return of_block(s.info.name); }))
+    shared = record::read_recording_shared(path_, record::SeriesSelection::block(block_));
   if (!shared) {
     params.fail("recording", "cannot read recording '" + path_ + "': " + shared.error());
     return Status::error("invalid parameters");
@@ -44,13 +53,16 @@ Status ReplayBoard::configure(ConfigureContext& ctx) {
   recording_ = std::move(*shared);
   const record::Recording* rec = recording_.get();
   warnings_ = rec->warnings;
-  const std::string prefix = block_ + ".";
   std::set<std::string> recorded_blocks;
   std::size_t count = 0;
+  const auto note_block = [&](const std::string& name) {
+    const auto dot = name.find('.');
+    if (dot != std::string::npos) recorded_blocks.insert(name.substr(0, dot));
+  };
+  for (const auto& name : rec->series_not_read) note_block(name);
   for (const auto& s : rec->series) {
-    const auto dot = s.info.name.find('.');
-    if (dot != std::string::npos) recorded_blocks.insert(s.info.name.substr(0, dot));
-    if (s.info.name.rfind(prefix, 0) == 0) ++count;
+    note_block(s.info.name);
+    if (of_block(s.info.name)) ++count;
   }
   if (count == 0) {
     std::string known;
@@ -66,7 +78,7 @@ Status ReplayBoard::configure(ConfigureContext& ctx) {
   streams_.clear();
   streams_.reserve(count);
   for (const auto& s : rec->series) {
-    if (s.info.name.rfind(prefix, 0) != 0) continue;
+    if (!of_block(s.info.name)) continue;
     Stream st;
     st.port = s.info.name.substr(prefix.size());
     st.kind = s.info.kind;

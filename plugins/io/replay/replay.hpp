@@ -9,9 +9,9 @@
 //   <port>: [the recorded elements and units of series "<block>.<port>", in recorded order]
 // @endsystem
 //
-// configure() reads the whole recording once (lode::record::read_recording_shared: when
-// `lode replay` has already read it, that copy is used) and plays the chosen block's series
-// from it; a gap in them (a dropped cycle) or series of different lengths
+// configure() reads the chosen block's series once, not the whole recording (the raw series
+// through lode::record::read_recording_shared: when `lode replay` has already read them, that
+// copy is used) and plays them back; a gap in them (a dropped cycle) or series of different lengths
 // is a configuration error at `recording`. step() copies row tick.cycle - first_cycle of every
 // series into its output after checking the recorded cycle number: the replay is bit-exact
 // (the doubles are copied, never recomputed). Past the last row it faults "end of recording".

@@ -16,6 +16,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -130,6 +131,8 @@ struct Recording {
   std::map<std::string, std::string> text_attributes;  ///< root string attributes (format, source, created_utc, ...)
   std::map<std::string, double> number_attributes;     ///< root numeric attributes (format_version, ...)
   std::vector<SeriesData> series;                      ///< in the order they were added
+  /// The series in the file that a SeriesSelection left out (their names, in file order).
+  std::vector<std::string> series_not_read;
   struct Ev {
     std::uint64_t cycle;
     std::int64_t stamp_ns;
@@ -141,13 +144,44 @@ struct Recording {
   std::vector<std::string> warnings;
 };
 
+/// Which series of a recording to read: `wanted(name, kind)` (kind: "signal", "state", "raw").
+/// `key` names the selection for read_recording_shared(): equal keys, equal selections.
+struct SeriesSelection {
+  std::string key;
+  std::function<bool(const std::string& name, const std::string& kind)> wanted;
+
+  /// Every series (what read_recording(path) reads).
+  static SeriesSelection all();
+  /// The raw inputs of the io blocks (kind "raw"): what a replay plays back.
+  static SeriesSelection raw();
+  /// The series of block `block` ("<block>.<port>").
+  static SeriesSelection block(const std::string& block);
+  /// The one series `name`.
+  static SeriesSelection one(const std::string& name);
+};
+
 /// Reads a whole recording written by Recorder (also one whose writer crashed after a flush).
 Expected<Recording> read_recording(const std::string& path);
 
+/// The attributes, the events and the series `selection` wants; the names of the others are
+/// in Recording::series_not_read. The memory check counts only what is read.
+Expected<Recording> read_recording(const std::string& path, const SeriesSelection& selection);
+
+/// What reading a selection of a recording takes, from the file's layout alone (no data read).
+struct ReadCost {
+  std::uint64_t bytes = 0;           ///< what read_recording(path, selection) holds at its peak
+  std::uint64_t largest_series = 0;  ///< the largest one series read alone takes at its peak
+  std::uint64_t rows = 0;            ///< the longest series' rows
+};
+Expected<ReadCost> read_cost(const std::string& path, const SeriesSelection& selection);
+
 /// read_recording(), read once per process while someone holds the result: a second call for
-/// the same file (same device, inode, size and modification time) returns the recording the
-/// first one read, without reading the file again. `lode replay` reads a recording and then
-/// configures io.replay blocks that play it back: they share one copy.
+/// the same file (same device, inode, size and modification time) and the same selection key
+/// returns the recording the first one read, without reading the file again. `lode replay`
+/// reads a recording's raw series and then configures io.replay blocks that play them back:
+/// they share one copy.
 Expected<std::shared_ptr<const Recording>> read_recording_shared(const std::string& path);
+Expected<std::shared_ptr<const Recording>> read_recording_shared(const std::string& path,
+                                                                 const SeriesSelection& selection);
 
 }  // namespace lode::record
