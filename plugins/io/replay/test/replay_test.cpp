@@ -90,6 +90,20 @@ TEST(IoReplay, DeclaresTheRecordedSeriesAndPlaysThemBitForBit) {
   EXPECT_STREQ(h.block().fault_reason(), "end of recording");
 }
 
+// The raw series are what a replay reads; another block's series (an estimate replayed as a
+// measurement) are read by name.
+TEST(IoReplay, PlaysBackABlockWhoseSeriesAreNotRaw) {
+  const auto path = make_recording("estimate.h5", 20);
+  lode::testing::BlockHarness h("io.replay", "recording: " + path + "\nblock: kf", 800.0);
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  EXPECT_THROW(h.output("signals"), std::out_of_range);  // stage.signals belongs to another block
+  for (std::size_t k = 0; k < 20; ++k) {
+    ASSERT_EQ(h.step(), lode::StepStatus::ok) << "cycle " << k << ": " << h.block().fault_reason();
+    EXPECT_EQ(h.output("pose")[0], 1e-6 * static_cast<double>(k) + 1e-9 / 3.0) << k;
+  }
+}
+
 TEST(IoReplay, AGapIsALocatedError) {
   const auto d = refusal_of("io.replay", "recording: " + make_recording("gap.h5", 40, 17) + "\nblock: stage", 800.0);
   EXPECT_NE(d.find("blocks.dut.recording"), std::string::npos) << d;
