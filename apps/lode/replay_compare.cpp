@@ -76,44 +76,36 @@ std::string largest_difference(const record::SeriesData& a, const record::Series
   return buf;
 }
 
-/// The names of a recording's series in file order (none of their data is read).
-Expected<std::vector<std::string>> series_names(const std::string& path) {
-  auto listing = record::read_recording(path, {"none", [](const std::string&, const std::string&) { return false; }});
-  if (!listing) return listing.status();
-  return std::move(listing->series_not_read);
-}
-
 }  // namespace
 
 Expected<BitCompare> compare_recording_files(const std::string& recorded, const std::string& replayed) {
-  auto recorded_names = series_names(recorded);
-  if (!recorded_names) return recorded_names.status();
-  auto replayed_names = series_names(replayed);
-  if (!replayed_names) return replayed_names.status();
-  const std::set<std::string> in_replay(replayed_names->begin(), replayed_names->end());
+  auto recorded_file = record::SeriesReader::open(recorded);
+  if (!recorded_file) return recorded_file.status();
+  auto replayed_file = record::SeriesReader::open(replayed);
+  if (!replayed_file) return replayed_file.status();
+  const auto& replayed_names = (*replayed_file)->names();
+  const std::set<std::string> in_replay(replayed_names.begin(), replayed_names.end());
   BitCompare r;
   std::set<std::string> seen;
-  for (const auto& name : *recorded_names) {
+  std::vector<std::string> warnings;  // said when the recording itself was read
+  for (const auto& name : (*recorded_file)->names()) {
     if (!in_replay.count(name)) {
       r.only_in_one.push_back(name + " (only in the recording)");
       continue;
     }
     seen.insert(name);
-    auto a = record::read_recording(recorded, record::SeriesSelection::one(name));
+    auto a = (*recorded_file)->read(name, warnings);
     if (!a) return a.status();
-    auto b = record::read_recording(replayed, record::SeriesSelection::one(name));
+    auto b = (*replayed_file)->read(name, warnings);
     if (!b) return b.status();
-    if (a->series.size() != 1 || b->series.size() != 1) return Status::error("series " + name + " could not be read");
-    const record::SeriesData& sa = a->series.front();
-    const record::SeriesData& sb = b->series.front();
     ++r.series;
-    r.cycles = std::max(r.cycles, sa.rows());
-    const std::string difference = first_difference(sa, sb);
+    r.cycles = std::max(r.cycles, a->rows());
+    const std::string difference = first_difference(*a, *b);
     if (difference.empty()) continue;
     if (r.first_difference.empty()) r.first_difference = difference;
-    if (std::string line = largest_difference(sa, sb); !line.empty()) r.largest_differences.push_back(std::move(line));
+    if (std::string line = largest_difference(*a, *b); !line.empty()) r.largest_differences.push_back(std::move(line));
   }
-  for (const auto& name : *replayed_names)
+  for (const auto& name : replayed_names)
     if (!seen.count(name)) r.only_in_one.push_back(name + " (only in the replay)");
   return r;
 }

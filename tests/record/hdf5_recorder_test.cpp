@@ -333,6 +333,21 @@ TEST(Hdf5RecorderTest, ASelectionReadsItsSeriesAndNamesTheRest) {
   EXPECT_EQ(shared_raw->get(), shared_raw_again->get());
   EXPECT_NE(shared_raw->get(), shared_all->get()) << "the raw selection was handed the whole recording's copy";
   EXPECT_EQ((*shared_all)->series.size(), 3U);
+
+  // Series by series from one open file.
+  auto reader = SeriesReader::open(path);
+  ASSERT_TRUE(reader) << reader.error();
+  EXPECT_EQ((*reader)->names(), (std::vector<std::string>{"stage.counts", "kf.pose", "stage.truth"}));
+  std::vector<std::string> warnings;
+  auto pose = (*reader)->read("kf.pose", warnings);
+  ASSERT_TRUE(pose) << pose.error();
+  EXPECT_EQ(pose->width(), 3U);
+  ASSERT_EQ(pose->rows(), 1000U);
+  EXPECT_EQ(pose->values[3 * 999], 999.0);
+  EXPECT_EQ(pose->values[3 * 999 + 2], -1.0);
+  EXPECT_TRUE(warnings.empty());
+  EXPECT_FALSE((*reader)->read("kf.velocity", warnings)) << "a series the file does not have";
+  EXPECT_FALSE(SeriesReader::open(scratch_path("missing.h5")));
 }
 
 // A recording written over a plain file replaces it with a new file (ext4 writes a file that

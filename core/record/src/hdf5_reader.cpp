@@ -270,50 +270,96 @@ SeriesSelection SeriesSelection::one(const std::string& series) {
 
 Expected<Recording> read_recording(const std::string& path) { return read_recording(path, SeriesSelection::all()); }
 
-Expected<ReadCost> read_cost(const std::string& path, const SeriesSelection& selection) {
-  silence_hdf5_errors();
-  const std::string where = "recording '" + path + "': ";
-  Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT));
-  if (!file.valid()) return Status::error(where + "cannot open: " + hdf5_message());
-  Handle signals(H5Gopen2(file.get(), "signals", H5P_DEFAULT));
-  if (!signals.valid()) return Status::error(where + "group /signals is missing");
-  std::vector<std::string> names;
-  if (H5Literate(signals.get(), H5_INDEX_NAME, H5_ITER_INC, nullptr, collect_link_name, &names) < 0)
-    return Status::error(where + "cannot list /signals: " + hdf5_message());
-  std::erase_if(names, [&](const std::string& name) { return !selection.wanted(name, series_kind(signals.get(), name)); });
-  return memory_to_read(signals.get(), names);
-}
+namespace {
 
-Expected<Recording> read_recording(const std::string& path, const SeriesSelection& selection) {
+/// A recording open for reading: its root attributes checked, /signals open and listed.
+struct OpenRecording {
+  Handle file, signals;
+  std::vector<std::string> names;  ///< of /signals, in the order they were added
+};
+
+Expected<OpenRecording> open_recording(const std::string& path, Recording& attributes) {
   silence_hdf5_errors();
   const std::string where = "recording '" + path + "': ";
-  Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT));
-  if (!file.valid()) return Status::error(where + "cannot open: " + hdf5_message());
-  Recording recording;
-  RootAttributes root{&recording, {}};
-  if (H5Aiterate2(file.get(), H5_INDEX_NAME, H5_ITER_INC, nullptr, collect_root_attribute, &root) < 0) {
+  OpenRecording open;
+  open.file = Handle(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT));
+  if (!open.file.valid()) return Status::error(where + "cannot open: " + hdf5_message());
+  RootAttributes root{&attributes, {}};
+  if (H5Aiterate2(open.file.get(), H5_INDEX_NAME, H5_ITER_INC, nullptr, collect_root_attribute, &root) < 0) {
     return Status::error(where + (root.error.empty() ? hdf5_message() : root.error));
   }
-  const auto format = recording.text_attributes.find("format");
-  if (format == recording.text_attributes.end() || format->second != kFormat) {
+  const auto format = attributes.text_attributes.find("format");
+  if (format == attributes.text_attributes.end() || format->second != kFormat) {
     return Status::error(where + "not a lodestone recording (root attribute format is not \"" + kFormat + "\")");
   }
-  const auto version = recording.number_attributes.find("format_version");
-  if (version == recording.number_attributes.end() || version->second > kFormatVersion) {
+  const auto version = attributes.number_attributes.find("format_version");
+  if (version == attributes.number_attributes.end() || version->second > kFormatVersion) {
     return Status::error(where + "format_version is missing or newer than " + std::to_string(kFormatVersion) +
                          ": update lodestone to read it");
   }
-
-  Handle signals(H5Gopen2(file.get(), "signals", H5P_DEFAULT));
-  if (!signals.valid()) return Status::error(where + "group /signals is missing");
-  std::vector<std::string> names;
-  if (H5Literate(signals.get(), H5_INDEX_CRT_ORDER, H5_ITER_INC, nullptr, collect_link_name, &names) < 0) {
+  open.signals = Handle(H5Gopen2(open.file.get(), "signals", H5P_DEFAULT));
+  if (!open.signals.valid()) return Status::error(where + "group /signals is missing");
+  if (H5Literate(open.signals.get(), H5_INDEX_CRT_ORDER, H5_ITER_INC, nullptr, collect_link_name, &open.names) < 0) {
     H5Eclear2(H5E_DEFAULT);  // creation order not tracked (written by another tool): by name
-    names.clear();
-    if (H5Literate(signals.get(), H5_INDEX_NAME, H5_ITER_INC, nullptr, collect_link_name, &names) < 0) {
+    open.names.clear();
+    if (H5Literate(open.signals.get(), H5_INDEX_NAME, H5_ITER_INC, nullptr, collect_link_name, &open.names) < 0) {
       return Status::error(where + "cannot list /signals: " + hdf5_message());
     }
   }
+  return open;
+}
+
+}  // namespace
+
+struct SeriesReader::Impl {
+  std::string path;
+  OpenRecording open;
+};
+
+Expected<std::unique_ptr<SeriesReader>> SeriesReader::open(const std::string& path) {
+  Recording attributes;
+  auto opened = open_recording(path, attributes);
+  if (!opened) return opened.status();
+  auto impl = std::make_unique<Impl>();
+  impl->path = path;
+  impl->open = std::move(*opened);
+  return std::unique_ptr<SeriesReader>(new SeriesReader(std::move(impl)));
+}
+
+SeriesReader::SeriesReader(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+SeriesReader::~SeriesReader() = default;
+
+const std::vector<std::string>& SeriesReader::names() const { return impl_->open.names; }
+
+Expected<SeriesData> SeriesReader::read(const std::string& name, std::vector<std::string>& warnings) {
+  const std::string where = "recording '" + impl_->path + "': ";
+  const std::uint64_t needed = memory_to_read(impl_->open.signals.get(), {name}).bytes;
+  if (const auto available = available_memory_bytes(); available && needed > *available) {
+    return Status::error(where + "reading series " + name + " takes about " + format_bytes(needed) +
+                         " of memory and this process has " + format_bytes(*available) + " left");
+  }
+  auto series = read_series(impl_->open.signals.get(), name, warnings);
+  if (!series) return Status::error(where + series.error());
+  return series;
+}
+
+Expected<ReadCost> read_cost(const std::string& path, const SeriesSelection& selection) {
+  Recording attributes;
+  auto opened = open_recording(path, attributes);
+  if (!opened) return opened.status();
+  std::erase_if(opened->names,
+                [&](const std::string& name) { return !selection.wanted(name, series_kind(opened->signals.get(), name)); });
+  return memory_to_read(opened->signals.get(), opened->names);
+}
+
+Expected<Recording> read_recording(const std::string& path, const SeriesSelection& selection) {
+  const std::string where = "recording '" + path + "': ";
+  Recording recording;
+  auto opened = open_recording(path, recording);
+  if (!opened) return opened.status();
+  Handle file = std::move(opened->file);
+  Handle signals = std::move(opened->signals);
+  std::vector<std::string> names = std::move(opened->names);
   std::vector<std::string> wanted;
   for (auto& name : names) {
     if (selection.wanted(name, series_kind(signals.get(), name)))

@@ -167,6 +167,28 @@ Expected<Recording> read_recording(const std::string& path);
 /// in Recording::series_not_read. The memory check counts only what is read.
 Expected<Recording> read_recording(const std::string& path, const SeriesSelection& selection);
 
+/// One recording open for reading series by series (a replay's bit-for-bit check holds one
+/// series of each file at a time): the file stays open between reads.
+class SeriesReader {
+ public:
+  /// Opens `path` and checks that it is a lodestone recording this build can read.
+  static Expected<std::unique_ptr<SeriesReader>> open(const std::string& path);
+  ~SeriesReader();
+  SeriesReader(const SeriesReader&) = delete;
+  SeriesReader& operator=(const SeriesReader&) = delete;
+
+  /// Every series in the file, in the order they were added.
+  [[nodiscard]] const std::vector<std::string>& names() const;
+  /// Series `name`, whole; what a reader should know about it (see Recording::warnings) is
+  /// appended to `warnings`.
+  Expected<SeriesData> read(const std::string& name, std::vector<std::string>& warnings);
+
+ private:
+  struct Impl;
+  explicit SeriesReader(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
 /// What reading a selection of a recording takes, from the file's layout alone (no data read).
 struct ReadCost {
   std::uint64_t bytes = 0;           ///< what read_recording(path, selection) holds at its peak
