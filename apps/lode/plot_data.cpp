@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <limits>
+#include <set>
 #include <unordered_map>
 
 #include "estimator_signals.hpp"
@@ -31,14 +32,14 @@ const record::SeriesData* LoadedRecording::series(const std::string& name) const
   return nullptr;
 }
 
-Expected<LoadedRecording> load_recording(const std::string& path, PluginRegistry& registry) {
-  auto recording = record::read_recording(path);
+Expected<LoadedRecording> open_recording(const std::string& path, PluginRegistry& registry) {
+  // The attributes, the events and the names of the series: no series data yet.
+  auto recording = record::read_recording(path, {"none", [](const std::string&, const std::string&) { return false; }});
   if (!recording) return recording.status();
   LoadedRecording loaded;
   loaded.path = path;
   loaded.label = std::filesystem::path(path).filename().string();
   loaded.recording = std::move(*recording);
-  for (const auto& w : loaded.recording.warnings) loaded.notes.push_back(path + ": " + w);
   const std::string config = loaded.text("config");
   if (config.empty()) {
     loaded.notes.push_back(path + ": no `config` attribute (a `lode record` of DDS topics): roles found by name");
@@ -50,9 +51,43 @@ Expected<LoadedRecording> load_recording(const std::string& path, PluginRegistry
   Diagnostics diagnostics;
   loaded.pipeline = Pipeline::load_text(config, loaded.text("config_file").empty() ? path : loaded.text("config_file"),
                                         registry, diagnostics);
-  if (!loaded.pipeline)
+  if (!loaded.pipeline) {
     loaded.notes.push_back(path + ": its configuration no longer loads (roles found by name): " +
                            diagnostics.format());
+    return loaded;
+  }
+  // Every series a figure or the run summary reads: the roles and the monitored signals.
+  std::set<std::string> wanted;
+  const SeriesRoles roles = find_roles(loaded);
+  for (const std::string* name : {&roles.reference, &roles.truth})
+    if (!name->empty()) wanted.insert(*name);
+  for (const auto& e : roles.estimates) wanted.insert(e.series);
+  const MonitorSpec& mon = loaded.pipeline->monitor();
+  for (const auto* s : {&mon.show, &mon.estimate, &mon.truth, &mon.reference})
+    if (*s) wanted.insert((*s)->name());
+  for (const auto& s : mon.record) wanted.insert(s.name());
+  loaded.plotted = {"plot", [wanted](const std::string& name, const std::string&) { return wanted.count(name) > 0; }};
+  return loaded;
+}
+
+Expected<std::uint64_t> plotted_bytes(const LoadedRecording& loaded) {
+  auto cost = record::read_cost(loaded.path, loaded.plotted);
+  if (!cost) return cost.status();
+  return cost->bytes;
+}
+
+Status read_plotted(LoadedRecording& loaded) {
+  auto recording = record::read_recording(loaded.path, loaded.plotted);
+  if (!recording) return recording.status();
+  loaded.recording = std::move(*recording);
+  for (const auto& w : loaded.recording.warnings) loaded.notes.push_back(loaded.path + ": " + w);
+  return Status::ok();
+}
+
+Expected<LoadedRecording> load_recording(const std::string& path, PluginRegistry& registry) {
+  auto loaded = open_recording(path, registry);
+  if (!loaded) return loaded.status();
+  if (Status s = read_plotted(*loaded); !s) return s;
   return loaded;
 }
 

@@ -29,12 +29,26 @@ struct LoadedRecording {
   record::Recording recording;
   std::unique_ptr<Pipeline> pipeline;
   std::vector<std::string> notes;
+  record::SeriesSelection plotted = record::SeriesSelection::all();  ///< what read_plotted() reads
   [[nodiscard]] std::string text(const std::string& key) const;
   [[nodiscard]] std::optional<double> number(const std::string& key) const;
   [[nodiscard]] const record::SeriesData* series(const std::string& name) const;
 };
 
-/// Reads `path` and loads its configuration with `registry` (which must outlive the result).
+/// Reads `path`'s attributes and loads its configuration with `registry` (which must outlive
+/// the result), and chooses the series a report needs: with a configuration, those its
+/// monitor: section and estimators name (the rest of a recording, such as a board's raw
+/// inputs, is never plotted); without one, all of them (roles are then found by name).
+/// No series is read yet: read_plotted() does.
+Expected<LoadedRecording> open_recording(const std::string& path, PluginRegistry& registry);
+
+/// What read_plotted() will hold of `loaded`'s recording (record::read_cost).
+Expected<std::uint64_t> plotted_bytes(const LoadedRecording& loaded);
+
+/// Reads the series open_recording() chose.
+Status read_plotted(LoadedRecording& loaded);
+
+/// open_recording() and read_plotted().
 Expected<LoadedRecording> load_recording(const std::string& path, PluginRegistry& registry);
 
 /// The series that play each part, by name ("block.port"); empty when absent.

@@ -367,8 +367,8 @@ int replay(const Args& args) {
     // compares, every cycle (an allowance of 16 values a row), and for the bit-for-bit check
     // one series of the recording and the same of the replay at a time; plus what HDF5 and
     // the plugins take (measured: 186 MB at the peak for a 194 MB, 300 s kawato_planar
-    // recording, against this estimate's 207 MB). An HTML report's plots hold about 1.5 times
-    // the files they plot more.
+    // recording, against this estimate's 212 MB). An HTML report (lode plot of the recording
+    // and each other configuration's replay) holds at most about 1.6 times those files more.
     const std::uint64_t bytes = files_bytes({a.recording});
     const auto raw = record::read_cost(a.recording, record::SeriesSelection::raw());
     const auto all = record::read_cost(a.recording, record::SeriesSelection::all());
