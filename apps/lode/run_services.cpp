@@ -108,6 +108,8 @@ Expected<std::unique_ptr<RunServices>> RunServices::start(Pipeline& pipeline, Sc
                                        im.local_socket);
   }
   if (telemetry) {
+    // On the simulated clock nothing is late: the publisher keeps normal scheduling.
+    if (options.simulated) im.spec.publisher_priority = 0;
     im.telemetry_tap = std::make_unique<TelemetryTap>(im.spec, pipeline.rate_hz());
     scheduler.add_hook(im.telemetry_tap.get());
     dds::ParticipantOptions po;

@@ -167,6 +167,19 @@ void Pipeline::Impl::parse_telemetry(const YAML::Node& t) {
   const auto ring = p.integer("ring_records", 0);
   p.check(ring >= 0 && ring <= (1 << 24), "ring_records", "must be in 0..16777216 (0 = one second of samples)");
   spec.ring_records = static_cast<std::uint32_t>(std::clamp<std::int64_t>(ring, 0, 1 << 24));
+  // A real-time loop's publisher runs SCHED_FIFO just above normal threads: measured at 10 kHz
+  // on a 2-vCPU VM, capture to subscriber p99 111 to 145 us against 167 to 1916 us with normal
+  // scheduling, in alternating runs.
+  const int rt_priority = realtime.priority;
+  const int default_priority = rt_priority > 1 ? std::min(kDefaultPublisherPriority, rt_priority - 1) : 0;
+  const auto priority = p.integer("priority", default_priority);
+  p.check(priority >= 0 && priority <= 98, "priority",
+          "must be in 0..98 (a SCHED_FIFO priority for the publisher thread; 0 = normal scheduling)");
+  if (priority > 0 && rt_priority > 0)
+    p.check(priority < rt_priority, "priority",
+            "must be below realtime.priority (" + std::to_string(rt_priority) +
+                "): the RT thread must preempt the publisher, never wait for it");
+  spec.publisher_priority = static_cast<int>(std::clamp<std::int64_t>(priority, 0, 98));
   const auto history = p.integer("history", 0);
   p.check(history >= 0 && history <= (1 << 20), "history", "must be in 0..1048576 (0 = one second of samples)");
   spec.history = static_cast<std::uint32_t>(std::clamp<std::int64_t>(history, 0, 1 << 20));

@@ -5,6 +5,11 @@
 #include <gtest/gtest.h>
 #include <pthread.h>
 
+#include <filesystem>
+#include <fstream>
+#include <sys/resource.h>
+#include <sched.h>
+#include <unistd.h>
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -608,6 +613,67 @@ TEST(Bridge, RealClockLatency) {
             << tap.doorbell().wakes() << " of " << tap.doorbell().sequence() << " cycles\n";
   // Loose: the VM has two noisy vCPUs.
   EXPECT_LT(percentile(latency_us, 0.5), 20000.0);
+}
+
+// A real-time loop's publisher is SCHED_FIFO below the RT thread by default, at most 10; a
+// loop with normal scheduling keeps a normally scheduled publisher.
+TEST(Bridge, ThePublishersPriorityFollowsTheLoops) {
+  const auto publisher_priority = [](const std::string& realtime) {
+    std::string yaml = pipeline_yaml(1, "");
+    yaml.replace(yaml.find("rate_hz: 1000\n"), 14, "rate_hz: 1000\n" + realtime);
+    lode::PluginRegistry registry;
+    lode::Diagnostics diag;
+    auto p = lode::Pipeline::load_text(yaml, "priority.yaml", registry, diag);
+    EXPECT_TRUE(p) << diag.format();
+    return p ? p->telemetry().publisher_priority : -1;
+  };
+  EXPECT_EQ(publisher_priority(""), 0);
+  EXPECT_EQ(publisher_priority("realtime: {priority: 80}\n"), lode::kDefaultPublisherPriority);
+  EXPECT_EQ(publisher_priority("realtime: {priority: 5}\n"), 4);
+  EXPECT_EQ(publisher_priority("realtime: {priority: 1}\n"), 0);
+}
+
+/// The scheduling policy and priority of this process's thread named `name` (-1, -1: none).
+std::pair<int, int> thread_scheduling(const std::string& name) {
+  for (const auto& task : std::filesystem::directory_iterator("/proc/self/task")) {
+    std::ifstream comm(task.path() / "comm");
+    std::string text;
+    std::getline(comm, text);
+    if (text != name) continue;
+    const pid_t tid = static_cast<pid_t>(std::stol(task.path().filename().string()));
+    sched_param sp{};
+    if (sched_getparam(tid, &sp) != 0) return {-1, -1};
+    return {sched_getscheduler(tid), sp.sched_priority};
+  }
+  return {-1, -1};
+}
+
+TEST(Bridge, ThePublisherRunsAtItsPriorityOrSaysWhyNot) {
+  const int kDomain = lode::testing::private_dds_domain();
+  Rig rig(pipeline_yaml(kDomain, "  priority: 7\n"));
+  ASSERT_TRUE(rig.ok());
+  std::pair<int, int> scheduling{-1, -1};
+  ASSERT_TRUE(wait_for([&] {
+    scheduling = thread_scheduling("lode-telemetry");
+    return scheduling.first >= 0;
+  }, 5s)) << "no thread lode-telemetry";
+  rlimit rtprio{};
+  getrlimit(RLIMIT_RTPRIO, &rtprio);
+  const bool allowed = geteuid() == 0 || rtprio.rlim_cur >= 7;
+  // The priority is set as the thread starts: give it the moment.
+  wait_for([&] { return (scheduling = thread_scheduling("lode-telemetry")).first == SCHED_FIFO || !allowed; }, 5s);
+  if (allowed) {
+    EXPECT_EQ(scheduling.first, SCHED_FIFO);
+    EXPECT_EQ(scheduling.second, 7);
+  } else {
+    EXPECT_EQ(scheduling.first, SCHED_OTHER);
+    bool warned = false;
+    ASSERT_TRUE(wait_for([&] {
+      for (const auto& e : rig.events.snapshot())
+        warned = warned || (e.kind == "warning" && e.text.find("telemetry.priority 7: SCHED_FIFO refused") != std::string::npos);
+      return warned;
+    }, 5s)) << "no warning that the priority was refused";
+  }
 }
 
 TEST(Bridge, TheDoorbellWakesThePublisherLongBeforeItsPollingPeriod) {

@@ -158,6 +158,14 @@ const std::vector<Case>& cases() {
       {"telemetry_network_settings_without_network",
        [] { return kValid + std::string("telemetry:\n  network: {interfaces: [10.0.0.5]}\n"); },
        "only apply with `transport: network`", "network: {interfaces"},
+      {"telemetry_publisher_above_the_loop",
+       [] {
+         return replace(kValid, "rate_hz: 800\n", "rate_hz: 800\nrealtime: {priority: 40}\n") +
+                std::string("telemetry: {priority: 40}\n");
+       },
+       "must be below realtime.priority (40): the RT thread must preempt the publisher", "telemetry: {priority: 40}"},
+      {"telemetry_priority_out_of_range", [] { return kValid + std::string("telemetry: {priority: 99}\n"); },
+       "must be in 0..98 (a SCHED_FIFO priority for the publisher thread", "priority: 99"},
       {"telemetry_missing_certificate",
        [] { return kValid + std::string("telemetry:\n  security: {ca_certificate: /nonexistent/ca.pem}\n"); },
        "cannot read '/nonexistent/ca.pem'", "security: {ca_certificate"},

@@ -21,6 +21,11 @@
 #include "bridge_impl.hpp"
 #include "lode/realtime.hpp"
 
+#include <pthread.h>
+#include <sched.h>
+
+#include <cstring>
+
 namespace lode::dds {
 namespace bridge_detail {
 
@@ -115,6 +120,15 @@ Status Bridge::open(const ParticipantOptions& options) {
 
   publisher_thread_ = std::thread([this] {
     pthread_setname_np(pthread_self(), "lode-telemetry");
+    if (const int priority = spec_.publisher_priority; priority > 0) {
+      sched_param sp{};
+      sp.sched_priority = priority;
+      if (const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp); rc != 0)
+        events_.post(0, 0, "warning",
+                     "telemetry.priority " + std::to_string(priority) + ": SCHED_FIFO refused (" + std::strerror(rc) +
+                         "): the publisher runs with normal scheduling, and samples leave later when other "
+                         "threads keep the CPUs busy");
+    }
     publisher_loop();
   });
   if (command_reader_ != nullptr) {

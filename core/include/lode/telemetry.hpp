@@ -99,7 +99,17 @@ struct TelemetrySpec {
   bool reliable = false;
   std::uint32_t ring_records = 0;  ///< per-signal ring capacity; 0 = one second of samples (min 1024)
   std::uint32_t history = 0;       ///< DDS writer history depth; 0 = one second of samples (min 64)
+  /// SCHED_FIFO priority of the publisher thread (`telemetry.priority`); 0 = normal scheduling.
+  /// Below the RT thread's, which preempts it; by default kDefaultPublisherPriority when the
+  /// pipeline runs real-time.
+  int publisher_priority = 0;
 };
+
+/// The publisher's default SCHED_FIFO priority in a pipeline with realtime.priority > it: above
+/// every normally scheduled thread (so a sample leaves when the RT thread rings, not when the
+/// scheduler gets round to it), below the RT thread and, on PREEMPT_RT, the threaded
+/// interrupt handlers (50) that carry the network's packets.
+inline constexpr int kDefaultPublisherPriority = 10;
 
 /// Topic names a person can guess from the YAML.
 [[nodiscard]] std::string signal_topic(const std::string& pipeline, const std::string& block,
