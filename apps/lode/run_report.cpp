@@ -89,13 +89,24 @@ void print_run_summary(const Json& summary, const RunFacts& f) {
                  static_cast<double>(op.exec_time->percentile(0.99)) / 1e3,
                  static_cast<double>(op.exec_time->max()) / 1e3);
   std::fprintf(out, "\n");
-  if (const auto* t = summary.find("telemetry"))
+  if (const auto* t = summary.find("telemetry")) {
+    const auto number = [&](const char* key) { return t->find(key) ? t->find(key)->as_number() : 0.0; };
+    const int asked = static_cast<int>(number("publisher_priority_asked"));
+    const int got = static_cast<int>(number("publisher_priority"));
+    char scheduling[160];
+    if (got > 0)
+      std::snprintf(scheduling, sizeof scheduling, "the publisher at SCHED_FIFO %d", got);
+    else if (asked > 0)
+      std::snprintf(scheduling, sizeof scheduling,
+                    "the publisher normally scheduled (SCHED_FIFO %d refused: see `lode rtcheck`)", asked);
+    else
+      std::snprintf(scheduling, sizeof scheduling, "the publisher normally scheduled");
     std::fprintf(out, "  telemetry: domain %lld, %llu samples handed over, %llu dropped by the RT side (rings full), "
-                 "%llu published\n",
-                 static_cast<long long>(t->find("domain")->as_number()),
-                 static_cast<unsigned long long>(t->find("samples_offered")->as_number()),
-                 static_cast<unsigned long long>(t->find("ring_dropped")->as_number()),
-                 static_cast<unsigned long long>(t->find("published") ? t->find("published")->as_number() : 0));
+                 "%llu published; %s\n",
+                 static_cast<long long>(number("domain")), static_cast<unsigned long long>(number("samples_offered")),
+                 static_cast<unsigned long long>(number("ring_dropped")),
+                 static_cast<unsigned long long>(number("published")), scheduling);
+  }
   if (const auto* t = summary.find("telemetry"); t && t->find("doorbell_rings") &&
                                                  t->find("doorbell_rings")->as_number() > 0) {
     // The publisher is usually awake when the samples come, and the ring is an atomic add

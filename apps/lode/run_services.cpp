@@ -294,6 +294,8 @@ Json RunServices::summary() const {
       t["commands_accepted"] = b.commands_accepted;
       t["commands_refused"] = b.commands_refused;
       t["commands_malformed"] = b.commands_malformed;
+      t["publisher_priority_asked"] = static_cast<std::int64_t>(im.spec.publisher_priority);
+      t["publisher_priority"] = static_cast<std::int64_t>(b.publisher_priority);
       t["publisher_stalled"] = im.stall_reported;
       t["clean_shutdown"] = !dds_stuck_;
     }

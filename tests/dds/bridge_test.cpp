@@ -665,8 +665,10 @@ TEST(Bridge, ThePublisherRunsAtItsPriorityOrSaysWhyNot) {
   if (allowed) {
     EXPECT_EQ(scheduling.first, SCHED_FIFO);
     EXPECT_EQ(scheduling.second, 7);
+    EXPECT_EQ(rig.bridge->stats().publisher_priority, 7) << "the run's summary would not say so";
   } else {
     EXPECT_EQ(scheduling.first, SCHED_OTHER);
+    EXPECT_EQ(rig.bridge->stats().publisher_priority, 0);
     bool warned = false;
     ASSERT_TRUE(wait_for([&] {
       for (const auto& e : rig.events.snapshot())

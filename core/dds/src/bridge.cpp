@@ -128,6 +128,8 @@ Status Bridge::open(const ParticipantOptions& options) {
                      "telemetry.priority " + std::to_string(priority) + ": SCHED_FIFO refused (" + std::strerror(rc) +
                          "): the publisher runs with normal scheduling, and samples leave later when other "
                          "threads keep the CPUs busy");
+      else
+        publisher_priority_.store(priority, std::memory_order_relaxed);
     }
     publisher_loop();
   });

@@ -143,6 +143,7 @@ class Bridge final : public TelemetryBridge {
     s.commands_accepted = commands_accepted_.load(std::memory_order_relaxed);
     s.commands_refused = commands_refused_.load(std::memory_order_relaxed);
     s.commands_malformed = commands_malformed_.load(std::memory_order_relaxed);
+    s.publisher_priority = publisher_priority_.load(std::memory_order_relaxed);
     return s;
   }
 
@@ -321,6 +322,7 @@ class Bridge final : public TelemetryBridge {
   std::atomic<std::uint64_t> commands_accepted_{0};
   std::atomic<std::uint64_t> commands_refused_{0};
   std::atomic<std::uint64_t> commands_malformed_{0};
+  std::atomic<int> publisher_priority_{0};  ///< set by the publisher thread as it starts
 };
 
 inline void ParticipantWatcher::on_participant_discovery(fdds::DomainParticipant* /*participant*/,

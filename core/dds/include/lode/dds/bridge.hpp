@@ -21,6 +21,7 @@ struct BridgeStats {
   std::uint64_t commands_accepted = 0;  ///< commands handed to the ControlService
   std::uint64_t commands_refused = 0;   ///< from a host/participant that is not allowed
   std::uint64_t commands_malformed = 0; ///< dropped: their bytes did not decode as a Command
+  int publisher_priority = 0;           ///< the SCHED_FIFO priority the publisher got; 0 = normal scheduling
 };
 
 class TelemetryBridge {
