@@ -82,9 +82,16 @@ std::optional<std::uint64_t> cgroup_headroom_bytes(std::string_view limit, std::
   auto u = parse_unsigned(usage);
   // v2 writes "max" for no limit; v1 a page-rounded 2^63 - 1.
   if (!l || !u || *l >= (std::uint64_t{1} << 62)) return std::nullopt;
-  // The usage counts the group's page cache, which the kernel drops before it refuses memory.
-  const auto droppable = keyed_figure(stat, "inactive_file", ' ').value_or(
-      keyed_figure(stat, "total_inactive_file", ' ').value_or(0));
+  // The usage counts the group's page cache, which the kernel writes back and drops before it
+  // refuses memory: every file page, active or not, as MemAvailable counts all of the page
+  // cache but a small reserve. A file the process has just written and read back (a replay's
+  // own, 194 MB for a 5-minute recording) is active; counting only the inactive pages, a
+  // replay under a 250 MiB limit was refused 17 MB to read one series with 15 MB "left".
+  const auto figure = [&](const char* key, const char* total_key) {
+    return keyed_figure(stat, key, ' ').value_or(keyed_figure(stat, total_key, ' ').value_or(0));
+  };
+  const std::uint64_t droppable =
+      figure("inactive_file", "total_inactive_file") + figure("active_file", "total_active_file");
   *u -= std::min(*u, droppable);
   return *l > *u ? *l - *u : 0;
 }

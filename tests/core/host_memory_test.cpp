@@ -30,6 +30,9 @@ TEST(HostMemory, CgroupHeadroomIsLimitLessUsageLessDroppableCache) {
   // cgroup v1: no limit is a page-rounded 2^63 - 1; its stat says total_inactive_file.
   EXPECT_EQ(lode::cgroup_headroom_bytes("9223372036854771712\n", "4415422464\n", ""), std::nullopt);
   EXPECT_EQ(lode::cgroup_headroom_bytes("1000\n", "900\n", "total_inactive_file 300\n"), 400ULL);
+  // The active file pages are droppable too (a file just written and read back is active).
+  EXPECT_EQ(lode::cgroup_headroom_bytes("1000\n", "900\n", "inactive_file 100\nactive_file 200\n"), 400ULL);
+  EXPECT_EQ(lode::cgroup_headroom_bytes("1000\n", "900\n", "total_active_file 300\n"), 400ULL);
   // Over the limit (it happens, briefly): nothing left, not a wrapped-around huge number.
   EXPECT_EQ(lode::cgroup_headroom_bytes("1000\n", "1500\n", ""), 0ULL);
   EXPECT_EQ(lode::cgroup_headroom_bytes("1000\n", "", ""), std::nullopt);

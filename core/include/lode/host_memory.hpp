@@ -15,8 +15,8 @@ namespace lode {
 std::optional<std::uint64_t> meminfo_available_bytes(std::string_view meminfo);
 
 /// What a control group's processes may still take, in bytes: its limit less its usage, the
-/// page cache it could drop (inactive_file of its memory.stat; v1: total_inactive_file) not
-/// counted as used. From cgroup v2's memory.max, memory.current and memory.stat, or v1's
+/// page cache it could drop (inactive_file and active_file of its memory.stat; v1:
+/// total_inactive_file, total_active_file) not counted as used. From cgroup v2's memory.max, memory.current and memory.stat, or v1's
 /// memory.limit_in_bytes, memory.usage_in_bytes and memory.stat; nullopt when there is no
 /// limit ("max", or v1's near 2^63) or the limit or usage does not parse.
 std::optional<std::uint64_t> cgroup_headroom_bytes(std::string_view limit, std::string_view usage,
