@@ -54,6 +54,12 @@ void release_process_realtime() {
   }
 }
 
+int set_thread_fifo_priority(int priority) noexcept {
+  sched_param sp{};
+  sp.sched_priority = priority;
+  return pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+}
+
 std::vector<std::string> apply_thread_realtime(const RealtimeSettings& s) {
   std::vector<std::string> warnings;
   if (s.cpu >= 0) {
@@ -71,9 +77,7 @@ std::vector<std::string> apply_thread_realtime(const RealtimeSettings& s) {
     }
   }
   if (s.priority > 0) {
-    sched_param sp{};
-    sp.sched_priority = s.priority;
-    if (const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp); rc != 0)
+    if (const int rc = set_thread_fifo_priority(s.priority); rc != 0)
       warnings.push_back(std::string("SCHED_FIFO priority ") + std::to_string(s.priority) +
                          " refused (" + std::strerror(rc) +
                          "): the loop runs with normal scheduling; run as root or grant "

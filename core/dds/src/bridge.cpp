@@ -21,9 +21,6 @@
 #include "bridge_impl.hpp"
 #include "lode/realtime.hpp"
 
-#include <pthread.h>
-#include <sched.h>
-
 #include <cstring>
 
 namespace lode::dds {
@@ -121,9 +118,7 @@ Status Bridge::open(const ParticipantOptions& options) {
   publisher_thread_ = std::thread([this] {
     pthread_setname_np(pthread_self(), "lode-telemetry");
     if (const int priority = spec_.publisher_priority; priority > 0) {
-      sched_param sp{};
-      sp.sched_priority = priority;
-      if (const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp); rc != 0)
+      if (const int rc = set_thread_fifo_priority(priority); rc != 0)
         events_.post(0, 0, "warning",
                      "telemetry.priority " + std::to_string(priority) + ": SCHED_FIFO refused (" + std::strerror(rc) +
                          "): the publisher runs with normal scheduling, and samples leave later when other "

@@ -26,6 +26,10 @@ inline void cpu_relax() noexcept {
 /// Returns warnings. Call before starting the RT thread.
 std::vector<std::string> apply_process_realtime(const RealtimeSettings& settings);
 
+/// The calling thread to SCHED_FIFO at `priority` (1..99): 0, or the error number why not
+/// (EPERM without CAP_SYS_NICE or a high enough RLIMIT_RTPRIO).
+int set_thread_fifo_priority(int priority) noexcept;
+
 /// Thread part, called on the RT thread: SCHED_FIFO priority, CPU affinity, prefaulted stack.
 std::vector<std::string> apply_thread_realtime(const RealtimeSettings& settings);
 

@@ -241,6 +241,18 @@ ReadCost memory_to_read(hid_t signals, const std::vector<std::string>& names) {
   return cost;
 }
 
+/// Refuses, with the figures, reading `what` of the recording `where` names when it takes more
+/// memory than this process has left: before the reading fills the memory and the OOM killer
+/// ends this process (or another).
+Status fits_in_memory(const std::string& where, const std::string& what, std::uint64_t needed) {
+  const auto available = available_memory_bytes();
+  if (!available || needed <= *available) return Status::ok();
+  return Status::error(where + "reading " + what + " takes about " + format_bytes(needed) +
+                       " of memory and this process has " + format_bytes(*available) +
+                       " left (available memory, within its control group's limit); read it on a machine "
+                       "with more memory free");
+}
+
 /// The `kind` attribute of series `name` ("" when it cannot be read: read_series says why).
 std::string series_kind(hid_t signals, const std::string& name) {
   Handle group(H5Gopen2(signals, name.c_str(), H5P_DEFAULT));
@@ -333,11 +345,8 @@ const std::vector<std::string>& SeriesReader::names() const { return impl_->open
 
 Expected<SeriesData> SeriesReader::read(const std::string& name, std::vector<std::string>& warnings) {
   const std::string where = "recording '" + impl_->path + "': ";
-  const std::uint64_t needed = memory_to_read(impl_->open.signals.get(), {name}).bytes;
-  if (const auto available = available_memory_bytes(); available && needed > *available) {
-    return Status::error(where + "reading series " + name + " takes about " + format_bytes(needed) +
-                         " of memory and this process has " + format_bytes(*available) + " left");
-  }
+  if (Status s = fits_in_memory(where, "series " + name, memory_to_read(impl_->open.signals.get(), {name}).bytes); !s)
+    return s;
   auto series = read_series(impl_->open.signals.get(), name, warnings);
   if (!series) return Status::error(where + series.error());
   return series;
@@ -368,15 +377,11 @@ Expected<Recording> read_recording(const std::string& path, const SeriesSelectio
       recording.series_not_read.push_back(std::move(name));
   }
   names = std::move(wanted);
-  // What is read is read whole: too large for the memory left, it is refused with the figures,
-  // before the reading fills the memory and the OOM killer ends this process (or another).
-  const std::uint64_t needed = memory_to_read(signals.get(), names).bytes;
-  if (const auto available = available_memory_bytes(); available && needed > *available) {
-    return Status::error(where + "reading its " + std::to_string(names.size()) + " series takes about " +
-                         format_bytes(needed) + " of memory and this process has " + format_bytes(*available) +
-                         " left (available memory, within its control group's limit); read it on a machine "
-                         "with more memory free");
-  }
+  // What is read is read whole: too large for the memory left, it is refused with the figures.
+  if (Status s = fits_in_memory(where, "its " + std::to_string(names.size()) + " series",
+                                memory_to_read(signals.get(), names).bytes);
+      !s)
+    return s;
   for (const auto& name : names) {
     auto series = read_series(signals.get(), name, recording.warnings);
     if (!series) return Status::error(where + series.error());
