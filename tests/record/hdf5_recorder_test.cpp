@@ -1,6 +1,7 @@
 // lodestone::record: HDF5 recordings round-trip bit for bit, count lost samples, survive a
 // crash after flush(), and write the files tests/record/read_recording.py reads with h5py.
 #include "lode/record/hdf5_recorder.hpp"
+#include "lode/sdk/testing/scratch_dir.hpp"
 
 #include <gtest/gtest.h>
 #include <hdf5.h>
@@ -24,11 +25,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string scratch_path(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("lode_record_test_" + std::to_string(getpid()));
-  fs::create_directories(dir);
-  return (dir / name).string();
-}
+// The process's own scratch folder, removed when it exits (every test leaves nothing behind,
+// whether it removes its files itself or stops at a failed assertion first).
+using lode::testing::scratch_path;
 
 std::uint64_t bits(double value) { return std::bit_cast<std::uint64_t>(value); }
 
@@ -195,7 +194,6 @@ TEST(Hdf5RecorderTest, RoundTripIsBitIdentical) {
   EXPECT_EQ(dataset_name_for("", 1), "value_1");
   EXPECT_EQ(dataset_name_for(".", 2), "value_.");
   EXPECT_EQ(dataset_name_for("θ", 2), "θ");
-  fs::remove_all(fs::path(path).parent_path());
 }
 
 // A replay knows its length: the datasets are made at that size and filled in bulk. What the
@@ -415,7 +413,6 @@ TEST(Hdf5RecorderTest, SkippedCyclesAreCountedAsGaps) {
   EXPECT_EQ(recording->series[0].gaps, 6U);
   EXPECT_EQ(recording->series[0].out_of_order, 1U);
   EXPECT_EQ(recording->series[0].rows(), 10U);
-  fs::remove_all(fs::path(path).parent_path());
 }
 
 TEST(Hdf5RecorderTest, DestructorWritesEverythingAndCloses) {
@@ -438,7 +435,6 @@ TEST(Hdf5RecorderTest, DestructorWritesEverythingAndCloses) {
   EXPECT_EQ(recording->series[0].values.back(), 1499.0);
   ASSERT_EQ(recording->events.size(), 1U);
   EXPECT_EQ(recording->events[0].kind, "stop");
-  fs::remove_all(fs::path(path).parent_path());
 }
 
 TEST(Hdf5RecorderTest, RowsReservedButNeverWrittenAreNotReadAsData) {
@@ -483,7 +479,6 @@ TEST(Hdf5RecorderTest, RowsReservedButNeverWrittenAreNotReadAsData) {
   for (const auto& w : recording->warnings) warnings += w + "\n";
   EXPECT_NE(warnings.find("rows 100 to 139 were reserved but never written"), std::string::npos) << warnings;
   EXPECT_NE(warnings.find("/events: rows 1 to 40 were reserved but never written"), std::string::npos) << warnings;
-  fs::remove_all(fs::path(path).parent_path());
 }
 
 // ---- Crash safety and the files the Python check reads ------------------------------------
@@ -570,7 +565,6 @@ TEST(Hdf5RecorderTest, FlushedSamplesSurviveACrash) {
   const std::string path = scratch_path("crashed.h5");
   write_known_file_in_child(path, /*crash=*/true);
   expect_known_content(path);
-  fs::remove_all(fs::path(path).parent_path());
 }
 
 // Also run by ctest as hdf5_recorder_write_fixture, with LODE_RECORD_FIXTURE_OUT set to the
@@ -590,7 +584,6 @@ TEST(Hdf5RecorderTest, WritesFilesForPython) {
   auto closed = read_recording(closed_path);
   ASSERT_TRUE(closed);
   EXPECT_EQ(closed->series[0].rows(), kFlushedCycles);  // closed: exactly what was appended
-  if (fixture_dir == nullptr) fs::remove_all(fs::path(closed_path).parent_path());
 }
 
 // ---- Errors --------------------------------------------------------------------------------
@@ -634,7 +627,6 @@ TEST(Hdf5RecorderTest, ErrorsNameThePathAndTheField) {
   auto not_hdf5 = read_recording("/proc/self/status");
   ASSERT_FALSE(not_hdf5);
   EXPECT_NE(not_hdf5.error().find("/proc/self/status"), std::string::npos) << not_hdf5.error();
-  fs::remove_all(fs::path(path).parent_path());
 }
 
 // ---- Speed (printed, asserted only loosely: two shared, noisy cores) ------------------------
@@ -666,7 +658,6 @@ TEST(Hdf5RecorderTest, WriteSpeedOfAThreeValueSeries) {
               static_cast<unsigned long long>(kSamples), seconds, rate, static_cast<double>(fs::file_size(path)) / 1e6,
               static_cast<double>(fs::file_size(path)) / static_cast<double>(kSamples));
   EXPECT_GT(rate, 20'000.0) << "far below a 10 kHz pipeline with margin";
-  fs::remove_all(fs::path(path).parent_path());
 }
 
 }  // namespace
