@@ -4,12 +4,21 @@
 // outputs and overrun count do not change.
 //
 // usage: telemetry_churn_client DOMAIN ROUNDS
+//
+// SIGTERM or SIGINT ends it after the current round, its participant deleted: a process killed
+// with its participant open leaves its shared memory in /dev/shm.
+#include <csignal>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <thread>
 
 #include "lode/dds/client.hpp"
+
+namespace {
+volatile std::sig_atomic_t g_stop = 0;
+void request_stop(int) { g_stop = 1; }
+}  // namespace
 
 int main(int argc, char** argv) {
   if (argc != 3) {
@@ -20,7 +29,10 @@ int main(int argc, char** argv) {
   const int rounds = std::atoi(argv[2]);
   std::uint64_t samples = 0;
   int rounds_with_data = 0;
-  for (int round = 0; round < rounds; ++round) {
+  std::signal(SIGTERM, request_stop);
+  std::signal(SIGINT, request_stop);
+  int round = 0;
+  for (; round < rounds && g_stop == 0; ++round) {
     lode::dds::ParticipantOptions o;
     o.domain = domain;
     o.name = "churn-" + std::to_string(round);
@@ -50,7 +62,7 @@ int main(int argc, char** argv) {
     samples += got.load();
     if (got.load() > 0) ++rounds_with_data;
   }
-  std::printf("churn: %d rounds, %d with data, %llu samples\n", rounds, rounds_with_data,
+  std::printf("churn: %d rounds, %d with data, %llu samples\n", round, rounds_with_data,
               static_cast<unsigned long long>(samples));
   return 0;
 }

@@ -25,6 +25,7 @@
 #include <fastrtps/utils/IPLocator.h>
 
 #include "local_delivery.hpp"
+#include "shared_memory_leftovers.hpp"
 #include "security.hpp"
 
 namespace lode::dds {
@@ -173,6 +174,8 @@ Status configure_participant_qos(const ParticipantOptions& options, fdds::Domain
     builtin.metatrafficUnicastLocatorList.push_back(udp_locator(localhost, 0));
   };
   const auto shared_memory = [&] {
+    // Before this process adds its own: what killed ones left (shared_memory_leftovers.hpp).
+    detail::remove_dead_shared_memory_once();
     auto shm = std::make_shared<eprosima::fastdds::rtps::SharedMemTransportDescriptor>();
     shm->segment_size(kSharedMemorySegmentBytes);
     shm->port_queue_capacity(kSharedMemoryPortQueue);
