@@ -14,7 +14,8 @@
 // changes between Chromium versions and interleaves with Chromium's own noise, while the
 // protocol's Runtime.exceptionThrown / consoleAPICalled events are a stable interface.
 // Hermetic: port 0 (Chromium picks a free one and prints it), a fresh profile directory
-// named after this process, and the browser's whole process group killed at the end.
+// named after this process (the browser's temporary files in it), and the browser's whole
+// process group killed at the end.
 import { spawn } from 'node:child_process';
 import { mkdtempSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
 import { createRequire } from 'node:module';
@@ -40,7 +41,9 @@ const browser = spawn(chromium, [
   '--headless', '--no-sandbox', '--disable-gpu', '--no-first-run', '--no-default-browser-check',
   '--remote-debugging-port=0', `--user-data-dir=${profile}`,
   `--window-size=${options.width},${options.height}`, 'about:blank',
-], { detached: true, stdio: ['ignore', 'ignore', 'pipe'] });
+  // Its temporary files too (the singleton socket's org.chromium.Chromium.* folder, which a
+  // killed browser leaves behind): inside the profile, removed with it.
+], { detached: true, stdio: ['ignore', 'ignore', 'pipe'], env: { ...process.env, TMPDIR: profile } });
 
 function cleanUp() {
   try { process.kill(-browser.pid, 'SIGKILL'); } catch { /* already gone */ }
