@@ -32,6 +32,7 @@ window.scopeChecks = async (o) => {
 
   // Samples received and frames drawn over `seconds`: the same window for both.
   const samples0 = { ...scope.stats.samples };
+  const lastCycle0 = { ...scope.stats.lastCycle };
   const redraws0 = scope.stats.redraws;
   const started = performance.now();
   await sleep(o.seconds * 1000);
@@ -41,7 +42,11 @@ window.scopeChecks = async (o) => {
   out.rates = {};
   for (const topic of new Set(out.selected.map((k) => k.split('#')[0])))
     out.rates[topic] = { received_hz: ((scope.stats.samples[topic] || 0) - (samples0[topic] || 0)) / elapsed,
-                         topic_hz: scope.state.byTopic.get(topic).rate_hz };
+                         topic_hz: scope.state.byTopic.get(topic).rate_hz,
+                         // The samples of cycles (first, last]: what another client got of
+                         // the same cycles is compared with this.
+                         samples: (scope.stats.samples[topic] || 0) - (samples0[topic] || 0),
+                         cycles: [lastCycle0[topic], scope.stats.lastCycle[topic]] };
   out.rows = scope.table.rows;
   out.late = scope.stats.late;
   out.plotted_points = scope.chart ? scope.chart.data[0].length : 0;

@@ -41,6 +41,13 @@ start_scope() {
 start_scope scope
 ok "lode scope serves $URL"
 
+# Another client of one of the topics the page ticks, beside it: what the scope shows of a run
+# of cycles is compared with what this got of the same cycles (the pipeline skips periods
+# when it overruns, so the cycles alone do not say how many samples there were).
+"$LODE" echo kf.pose --domain "$DOMAIN" --wait 60 --duration 120 >"$TMP/echo_pose.out" 2>"$TMP/echo_pose.err" &
+ECHO_POSE=$!
+PIDS+=($ECHO_POSE)
+
 # The page, driven in Chromium. The checks wait for the signals (DDS discovery) themselves.
 node "$PAGE" --url "$URL" --ready 'window.lodeScope !== undefined' --script "$SRC/tests/scope/scope_page_checks.js" \
   --eval "scopeChecks({signals: 10, seconds: 4, parameter: 'kf_hybrid.d', value: '0.4',
@@ -48,6 +55,20 @@ node "$PAGE" --url "$URL" --ready 'window.lodeScope !== undefined' --script "$SR
           trigger: true})" \
   --timeout 150 --screenshot "$TMP/scope.png" >"$TMP/page.json" 2>"$TMP/page.err"
 check_rc "the page runs in headless Chromium without a console error" 0 $? "$TMP/page.json"
+kill -TERM $ECHO_POSE 2>/dev/null; wait $ECHO_POSE 2>/dev/null
+"$PY" - "$TMP/page.json" "$TMP/echo_pose.out" <<'EOF' || bad "the scope showed fewer kf.pose samples than lode echo got of the same cycles"
+import json, sys
+v = json.loads(json.load(open(sys.argv[1]))["value"])
+topic = next(t for t in v["rates"] if t.endswith("kf/pose"))
+r = v["rates"][topic]
+first, last = r["cycles"]
+echoed = sum(1 for line in open(sys.argv[2]) if line.strip() and not line.startswith("#")
+             and first < float(line.split()[0]) <= last)
+print(f"  {topic}: cycles ({first:.0f}, {last:.0f}]: the scope {r['samples']} samples, lode echo {echoed}")
+# Both read the same writer on this host; a sample either one lost is all that may differ.
+assert echoed > 100 and r["samples"] >= 0.97 * echoed, (r["samples"], echoed)
+print("ok: the scope showed every sample lode echo got of those cycles")
+EOF
 "$PY" - "$TMP/page.json" <<'EOF' || bad "what the page showed (above)"
 import json, sys
 page = json.load(open(sys.argv[1]))

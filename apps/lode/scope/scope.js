@@ -77,7 +77,8 @@ function setValue(row, key, value) {
 // Topics arrive in separate listener threads: a row is only final once every topic that
 // is flowing has reached its cycle. Samples wait per topic until then (the watermark).
 const pendingByTopic = new Map();  // topic -> {rows: [Float64Array...], lastCycle, arrived}
-const stats = { samples: {}, batches: 0, late: 0, redraws: 0, started: performance.now() };
+// samples and lastCycle per topic: what arrived, and the newest cycle among it.
+const stats = { samples: {}, lastCycle: {}, batches: 0, late: 0, redraws: 0, started: performance.now() };
 
 function receiveSamples(message) {
   const now = performance.now();
@@ -92,6 +93,7 @@ function receiveSamples(message) {
     p.lastCycle = rows[(t.rows - 1) * t.width];
     p.arrived = now;
     stats.samples[t.topic] = (stats.samples[t.topic] || 0) + t.rows;
+    stats.lastCycle[t.topic] = p.lastCycle;
   }
   ++stats.batches;
   mergePending(now);
