@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -565,6 +566,60 @@ TEST(Hdf5RecorderTest, FlushedSamplesSurviveACrash) {
   const std::string path = scratch_path("crashed.h5");
   write_known_file_in_child(path, /*crash=*/true);
   expect_known_content(path);
+}
+
+/// A copy of `from` at `to` with `mangle` applied to its bytes at the file's first global heap
+/// (the "GCOL" collection that holds its variable-length strings: attributes, event texts).
+template <typename Mangle>
+void copy_with_heap_damaged(const std::string& from, const std::string& to, Mangle&& mangle) {
+  std::string bytes(static_cast<std::size_t>(fs::file_size(from)), '\0');
+  std::ifstream(from, std::ios::binary).read(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  const std::size_t heap = bytes.find("GCOL");
+  ASSERT_NE(heap, std::string::npos) << from << " has no global heap";
+  ASSERT_GT(bytes.size(), heap + 64);
+  mangle(bytes.data() + heap);
+  std::ofstream(to, std::ios::binary).write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+// HDF5 1.10 copies a heap object with the size the heap states: a size of 1 MiB in a 4 KiB
+// collection made this very process die with SIGSEGV before the file was read in a child first.
+TEST(Hdf5RecorderTest, AHeapThatCrashesHdf5IsAnErrorNotACrash) {
+  const std::string good = scratch_path("heap_good.h5");
+  const std::string bad = scratch_path("heap_oversized.h5");
+  write_known_file_in_child(good, /*crash=*/false);
+  // A collection: "GCOL", version, 3 reserved, its size (8); then objects: index (2),
+  // references (2), reserved (4), size (8), the bytes.
+  copy_with_heap_damaged(good, bad, [](char* collection) {
+    const std::uint64_t size = 1 << 20;
+    std::memcpy(collection + 16 + 8, &size, sizeof size);
+  });
+  for (int attempt = 0; attempt < 2; ++attempt) {  // the second from the process's verdict
+    auto recording = read_recording(bad);
+    ASSERT_FALSE(recording);
+    EXPECT_NE(recording.error().find(bad), std::string::npos) << recording.error();
+    EXPECT_NE(recording.error().find("damaged"), std::string::npos) << recording.error();
+    EXPECT_NE(recording.error().find("SIGSEGV"), std::string::npos) << recording.error();
+  }
+  auto reader = SeriesReader::open(bad);
+  ASSERT_FALSE(reader);
+  EXPECT_NE(reader.error().find("SIGSEGV"), std::string::npos) << reader.error();
+  EXPECT_FALSE(read_cost(bad, SeriesSelection::all()));
+  expect_known_content(good);  // the undamaged original reads as before
+}
+
+// A zeroed object header sends HDF5 1.10 round a loop it never leaves: the reader stops the
+// child after 20 s without progress and says so, instead of hanging with it.
+TEST(Hdf5RecorderTest, AHeapThatHangsHdf5IsStopped) {
+  const std::string good = scratch_path("heap_good_2.h5");
+  const std::string bad = scratch_path("heap_looping.h5");
+  write_known_file_in_child(good, /*crash=*/false);
+  copy_with_heap_damaged(good, bad, [](char* collection) { std::memset(collection + 16, 0, 16); });
+  const auto start = std::chrono::steady_clock::now();
+  auto recording = read_recording(bad);
+  const double waited_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  ASSERT_FALSE(recording);
+  EXPECT_NE(recording.error().find("no progress"), std::string::npos) << recording.error();
+  EXPECT_LT(waited_s, 120.0);
 }
 
 // Also run by ctest as hdf5_recorder_write_fixture, with LODE_RECORD_FIXTURE_OUT set to the

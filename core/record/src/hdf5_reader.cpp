@@ -8,6 +8,7 @@
 
 #include "hdf5_common.hpp"
 #include "lode/host_memory.hpp"
+#include "read_in_child.hpp"
 
 namespace lode::record {
 
@@ -133,13 +134,8 @@ herr_t collect_link_name(hid_t /*group*/, const char* name, const H5L_info_t* /*
   return 0;
 }
 
-Expected<SeriesData> read_series(hid_t signals, const std::string& name, std::vector<std::string>& warnings) {
-  const std::string where = "/signals/" + name + ": ";
-  Handle group(H5Gopen2(signals, name.c_str(), H5P_DEFAULT));
-  if (!group.valid()) return Status::error(where + "not a group: " + hdf5_message());
-  const hid_t g = group.get();
-  SeriesData data;
-  data.info.name = name;
+/// The attributes of series group `g` into `data` (its info and counters).
+Status read_series_attributes(hid_t g, SeriesData& data) {
   auto topic = read_text_attribute(g, "topic");
   auto kind = read_text_attribute(g, "kind");
   auto names = read_string_attribute(g, "names");
@@ -151,9 +147,9 @@ Expected<SeriesData> read_series(hid_t signals, const std::string& name, std::ve
   auto out_of_order = read_number_attribute<std::uint64_t>(g, "out_of_order", H5T_NATIVE_UINT64);
   for (const Status& status : {topic.status(), kind.status(), names.status(), units.status(), rate.status(),
                                pipeline_rate.status(), decimation.status(), gaps.status(), out_of_order.status()}) {
-    if (!status) return Status::error(where + status.message());
+    if (!status) return status;
   }
-  if (names->size() != units->size()) return Status::error(where + "attributes names and units differ in length");
+  if (names->size() != units->size()) return Status::error("attributes names and units differ in length");
   data.info.topic = *topic;
   data.info.kind = *kind;
   data.info.names = *names;
@@ -163,6 +159,19 @@ Expected<SeriesData> read_series(hid_t signals, const std::string& name, std::ve
   data.info.decimation = *decimation;
   data.gaps = *gaps;
   data.out_of_order = *out_of_order;
+  return {};
+}
+
+Expected<SeriesData> read_series(hid_t signals, const std::string& name, std::vector<std::string>& warnings) {
+  const std::string where = "/signals/" + name + ": ";
+  Handle group(H5Gopen2(signals, name.c_str(), H5P_DEFAULT));
+  if (!group.valid()) return Status::error(where + "not a group: " + hdf5_message());
+  const hid_t g = group.get();
+  SeriesData data;
+  data.info.name = name;
+  if (Status attributes = read_series_attributes(g, data); !attributes)
+    return Status::error(where + attributes.message());
+  const std::vector<std::string>* names = &data.info.names;
 
   auto cycle = read_column<std::uint64_t>(g, "cycle", H5T_NATIVE_UINT64);
   auto stamp = read_column<std::int64_t>(g, "stamp_ns", H5T_NATIVE_INT64);
@@ -211,6 +220,41 @@ Expected<SeriesData> read_series(hid_t signals, const std::string& name, std::ve
     for (std::size_t v = 0; v < columns.size(); ++v) data.values[row * columns.size() + v] = columns[v][row];
   }
   return data;
+}
+
+/// What read_column() reads of dataset `name` of `group`, read by HDF5 a slab at a time into
+/// one small buffer and dropped: every chunk reached through the file's index, nothing held.
+bool read_column_through(hid_t group, const std::string& name, hid_t memory_type) {
+  Handle dataset(H5Dopen2(group, name.c_str(), H5P_DEFAULT));
+  if (!dataset.valid()) return false;
+  Handle space(H5Dget_space(dataset.get()));
+  const hssize_t count = H5Sget_simple_extent_npoints(space.get());
+  if (count < 0 || H5Tget_size(memory_type) != 8) return false;
+  constexpr hsize_t kSlabRows = 16384;
+  std::vector<std::uint64_t> slab(kSlabRows);
+  for (hsize_t first = 0; first < static_cast<hsize_t>(count); first += kSlabRows) {
+    const hsize_t rows = std::min<hsize_t>(kSlabRows, static_cast<hsize_t>(count) - first);
+    Handle memory_space(H5Screate_simple(1, &rows, nullptr));
+    if (H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, &first, nullptr, &rows, nullptr) < 0 ||
+        H5Dread(dataset.get(), memory_type, memory_space.get(), space.get(), H5P_DEFAULT, slab.data()) < 0) {
+      return false;
+    }
+  }
+  return true;
+}
+
+/// Everything read_series() reads of series `name`, read and dropped (read_column_through).
+bool read_series_through(hid_t signals, const std::string& name) {
+  Handle group(H5Gopen2(signals, name.c_str(), H5P_DEFAULT));
+  if (!group.valid()) return false;
+  SeriesData data;
+  if (!read_series_attributes(group.get(), data).is_ok()) return false;
+  bool ok = read_column_through(group.get(), "cycle", H5T_NATIVE_UINT64) &&
+            read_column_through(group.get(), "stamp_ns", H5T_NATIVE_INT64) &&
+            read_column_through(group.get(), "captured_ns", H5T_NATIVE_INT64);
+  for (std::size_t i = 0; ok && i < data.info.names.size(); ++i)
+    ok = read_column_through(group.get(), dataset_name_for(data.info.names[i], i), H5T_NATIVE_DOUBLE);
+  return ok;
 }
 
 /// The memory read_series() takes for the series `names` of /signals: the rows of each
@@ -290,9 +334,13 @@ struct OpenRecording {
   std::vector<std::string> names;  ///< of /signals, in the order they were added
 };
 
+bool read_whole_file(const std::string& path);
+
 Expected<OpenRecording> open_recording(const std::string& path, Recording& attributes) {
   silence_hdf5_errors();
   const std::string where = "recording '" + path + "': ";
+  if (Status checked = read_first_in_child(path, read_whole_file); !checked)
+    return Status::error(where + checked.message());
   OpenRecording open;
   open.file = Handle(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT));
   if (!open.file.valid()) return Status::error(where + "cannot open: " + hdf5_message());
@@ -319,6 +367,52 @@ Expected<OpenRecording> open_recording(const std::string& path, Recording& attri
     }
   }
   return open;
+}
+
+/// /events into `recording` (rows never written are left out, with a warning).
+Status read_events(hid_t file, Recording& recording) {
+  Handle events(H5Gopen2(file, "events", H5P_DEFAULT));
+  if (!events.valid()) return Status::error("group /events is missing");
+  auto cycle = read_column<std::uint64_t>(events.get(), "cycle", H5T_NATIVE_UINT64);
+  auto stamp = read_column<std::int64_t>(events.get(), "stamp_ns", H5T_NATIVE_INT64);
+  auto kind = read_string_column(events.get(), "kind");
+  auto text = read_string_column(events.get(), "text");
+  for (const Status& status : {cycle.status(), stamp.status(), kind.status(), text.status()}) {
+    if (!status) return Status::error("/events: " + status.message());
+  }
+  const std::size_t rows = std::min({cycle->size(), stamp->size(), kind->size(), text->size()});
+  if (rows != std::max({cycle->size(), stamp->size(), kind->size(), text->size()})) {
+    recording.warnings.push_back(
+        "/events: columns differ in length (the writer stopped during a write); read the first " +
+        std::to_string(rows));
+  }
+  for (std::size_t i = 0; i < rows; ++i) {
+    if ((*cycle)[i] == kMissingCycle) {  // reserved, never written (see read_series)
+      recording.warnings.push_back("/events: rows " + std::to_string(i) + " to " + std::to_string(rows - 1) +
+                                   " were reserved but never written (the writer stopped); read the first " +
+                                   std::to_string(i));
+      break;
+    }
+    recording.events.push_back({(*cycle)[i], (*stamp)[i], std::move((*kind)[i]), std::move((*text)[i])});
+  }
+  return {};
+}
+
+/// Every part of the file that read_recording(), read_cost() and SeriesReader may touch, read
+/// and dropped: what read_first_in_child() runs in its child.
+bool read_whole_file(const std::string& path) {
+  Recording recording;
+  auto opened = open_recording(path, recording);
+  if (!opened) return false;
+  note_progress();
+  (void)memory_to_read(opened->signals.get(), opened->names);
+  bool ok = true;
+  for (const auto& name : opened->names) {
+    (void)series_kind(opened->signals.get(), name);
+    ok = read_series_through(opened->signals.get(), name) && ok;
+    note_progress();
+  }
+  return read_events(opened->file.get(), recording).is_ok() && ok;
 }
 
 }  // namespace
@@ -388,30 +482,7 @@ Expected<Recording> read_recording(const std::string& path, const SeriesSelectio
     recording.series.push_back(std::move(*series));
   }
 
-  Handle events(H5Gopen2(file.get(), "events", H5P_DEFAULT));
-  if (!events.valid()) return Status::error(where + "group /events is missing");
-  auto cycle = read_column<std::uint64_t>(events.get(), "cycle", H5T_NATIVE_UINT64);
-  auto stamp = read_column<std::int64_t>(events.get(), "stamp_ns", H5T_NATIVE_INT64);
-  auto kind = read_string_column(events.get(), "kind");
-  auto text = read_string_column(events.get(), "text");
-  for (const Status& status : {cycle.status(), stamp.status(), kind.status(), text.status()}) {
-    if (!status) return Status::error(where + "/events: " + status.message());
-  }
-  const std::size_t rows = std::min({cycle->size(), stamp->size(), kind->size(), text->size()});
-  if (rows != std::max({cycle->size(), stamp->size(), kind->size(), text->size()})) {
-    recording.warnings.push_back(
-        "/events: columns differ in length (the writer stopped during a write); read the first " +
-        std::to_string(rows));
-  }
-  for (std::size_t i = 0; i < rows; ++i) {
-    if ((*cycle)[i] == kMissingCycle) {  // reserved, never written (see read_series)
-      recording.warnings.push_back("/events: rows " + std::to_string(i) + " to " + std::to_string(rows - 1) +
-                                   " were reserved but never written (the writer stopped); read the first " +
-                                   std::to_string(i));
-      break;
-    }
-    recording.events.push_back({(*cycle)[i], (*stamp)[i], std::move((*kind)[i]), std::move((*text)[i])});
-  }
+  if (Status events = read_events(file.get(), recording); !events) return Status::error(where + events.message());
   return recording;
 }
 

@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include "hdf5_common.hpp"
+#include "read_in_child.hpp"
 
 namespace lode::record {
 
@@ -475,7 +476,9 @@ Status Recorder::close() {
   impl_->write_events();
   impl_->closed = true;
   impl_->close_file();
-  return impl_->take_error();
+  Status status = impl_->take_error();
+  if (status) trust_written_file(impl_->path);  // read back by this process without a check
+  return status;
 }
 
 std::uint64_t Recorder::samples(int series) const {
