@@ -568,42 +568,58 @@ TEST(Hdf5RecorderTest, FlushedSamplesSurviveACrash) {
   expect_known_content(path);
 }
 
-/// A copy of `from` at `to` with `mangle` applied to its bytes at the file's first global heap
-/// (the "GCOL" collection that holds its variable-length strings: attributes, event texts).
+/// A copy of `from` at `to` with `mangle` applied to its bytes.
 template <typename Mangle>
-void copy_with_heap_damaged(const std::string& from, const std::string& to, Mangle&& mangle) {
+void copy_damaged(const std::string& from, const std::string& to, Mangle&& mangle) {
   std::string bytes(static_cast<std::size_t>(fs::file_size(from)), '\0');
   std::ifstream(from, std::ios::binary).read(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-  const std::size_t heap = bytes.find("GCOL");
-  ASSERT_NE(heap, std::string::npos) << from << " has no global heap";
-  ASSERT_GT(bytes.size(), heap + 64);
-  mangle(bytes.data() + heap);
+  mangle(bytes);
   std::ofstream(to, std::ios::binary).write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
 }
 
+// The global heap holds a file's variable-length strings (attributes, event texts) in
+// collections: "GCOL", version, 3 reserved, the collection's size (8); then objects: index (2),
+// references (2), reserved (4), size (8), the bytes. Offset of the size of the object whose
+// bytes are `text` (found by its stated size followed by the text), or npos.
+std::size_t heap_object_size_at(const std::string& bytes, const std::string& text) {
+  std::string header(8, '\0');
+  const std::uint64_t size = text.size();
+  std::memcpy(header.data(), &size, sizeof size);
+  const std::size_t at = bytes.find(header + text, bytes.find("GCOL"));
+  return at;
+}
+
 // HDF5 1.10 copies a heap object with the size the heap states: a size of 1 MiB in a 4 KiB
-// collection made this very process die with SIGSEGV before the file was read in a child first.
+// collection made this very process die with SIGSEGV before each file was read in a child
+// first. Once in a root attribute (the first object), once in a series' unit.
 TEST(Hdf5RecorderTest, AHeapThatCrashesHdf5IsAnErrorNotACrash) {
   const std::string good = scratch_path("heap_good.h5");
-  const std::string bad = scratch_path("heap_oversized.h5");
   write_known_file_in_child(good, /*crash=*/false);
-  // A collection: "GCOL", version, 3 reserved, its size (8); then objects: index (2),
-  // references (2), reserved (4), size (8), the bytes.
-  copy_with_heap_damaged(good, bad, [](char* collection) {
-    const std::uint64_t size = 1 << 20;
-    std::memcpy(collection + 16 + 8, &size, sizeof size);
+  const std::uint64_t oversized = 1 << 20;
+  const std::string root = scratch_path("heap_root_oversized.h5");
+  copy_damaged(good, root, [&](std::string& bytes) {
+    const std::size_t collection = bytes.find("GCOL");
+    ASSERT_NE(collection, std::string::npos) << good << " has no global heap";
+    std::memcpy(bytes.data() + collection + 16 + 8, &oversized, sizeof oversized);
   });
-  for (int attempt = 0; attempt < 2; ++attempt) {  // the second from the process's verdict
+  const std::string series = scratch_path("heap_series_oversized.h5");
+  copy_damaged(good, series, [&](std::string& bytes) {
+    // glsdc.pose's third unit: read only by read_series (a series' names are read by more)
+    const std::size_t size_at = heap_object_size_at(bytes, "rad");
+    ASSERT_NE(size_at, std::string::npos) << "no heap object holds the unit rad";
+    std::memcpy(bytes.data() + size_at, &oversized, sizeof oversized);
+  });
+  for (const std::string& bad : {root, root, series}) {  // the second from the process's verdict
     auto recording = read_recording(bad);
     ASSERT_FALSE(recording);
     EXPECT_NE(recording.error().find(bad), std::string::npos) << recording.error();
     EXPECT_NE(recording.error().find("damaged"), std::string::npos) << recording.error();
     EXPECT_NE(recording.error().find("SIGSEGV"), std::string::npos) << recording.error();
   }
-  auto reader = SeriesReader::open(bad);
+  auto reader = SeriesReader::open(series);
   ASSERT_FALSE(reader);
   EXPECT_NE(reader.error().find("SIGSEGV"), std::string::npos) << reader.error();
-  EXPECT_FALSE(read_cost(bad, SeriesSelection::all()));
+  EXPECT_FALSE(read_cost(series, SeriesSelection::all()));
   expect_known_content(good);  // the undamaged original reads as before
 }
 
@@ -613,7 +629,11 @@ TEST(Hdf5RecorderTest, AHeapThatHangsHdf5IsStopped) {
   const std::string good = scratch_path("heap_good_2.h5");
   const std::string bad = scratch_path("heap_looping.h5");
   write_known_file_in_child(good, /*crash=*/false);
-  copy_with_heap_damaged(good, bad, [](char* collection) { std::memset(collection + 16, 0, 16); });
+  copy_damaged(good, bad, [&](std::string& bytes) {
+    const std::size_t collection = bytes.find("GCOL");
+    ASSERT_NE(collection, std::string::npos) << good << " has no global heap";
+    std::memset(bytes.data() + collection + 16, 0, 16);
+  });
   const auto start = std::chrono::steady_clock::now();
   auto recording = read_recording(bad);
   const double waited_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
