@@ -12,7 +12,7 @@ mode=${1:-demo}
 case "$mode" in demo|test|build|package) ;; *) echo "usage: $0 demo|test|build|package" >&2; exit 2 ;; esac
 
 PACKAGES=(build-essential g++ cmake make pkg-config
-  libeigen3-dev libyaml-cpp-dev libspdlog-dev libfmt-dev
+  libeigen3-dev libyaml-cpp-dev libspdlog-dev libfmt-dev libutfcpp-dev
   libgtest-dev libgmock-dev libbenchmark-dev rt-tests libslicot-dev
   libcli11-dev nlohmann-json3-dev strace help2man man-db    # command line, local JSON commands, man pages; strace for the CLI test
   libfastrtps-dev libfastcdr-dev fastddsgen fastdds-tools  # telemetry over Fast DDS 2.9

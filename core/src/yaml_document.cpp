@@ -1,6 +1,11 @@
 #include "yaml_document.hpp"
 
+#include <utf8.h>
+
+#include <algorithm>
+#include <cstdio>
 #include <set>
+#include <string_view>
 
 #include "params_node.hpp"
 
@@ -74,8 +79,37 @@ class DocumentCheck {
 
 }  // namespace
 
+namespace {
+
+/// The first byte of `text` that is not UTF-8, located: yaml-cpp passes such bytes on into
+/// names, units and strings (and from there into JSON and DDS), and a file saved as Latin-1
+/// or Windows-1252 ("µm" as 0xB5) is the usual cause. A text that starts with a UTF-16 or
+/// UTF-32 byte order mark is left to yaml-cpp, which reads those encodings.
+bool check_utf8(const std::string& text, const std::string& label, Diagnostics& diagnostics) {
+  const auto starts_with = [&](std::string_view mark) { return std::string_view(text).substr(0, mark.size()) == mark; };
+  using namespace std::string_view_literals;
+  if (starts_with("\xFE\xFF"sv) || starts_with("\xFF\xFE"sv) || starts_with("\x00\x00\xFE\xFF"sv)) return true;
+  const auto bad = utf8::find_invalid(text.begin(), text.end());
+  if (bad == text.end()) return true;
+  const std::size_t at = static_cast<std::size_t>(bad - text.begin());
+  const std::size_t line_start = text.rfind('\n', at == 0 ? 0 : at - 1);
+  const std::size_t from = (line_start == std::string::npos || at == 0) ? 0 : line_start + 1;
+  const int line = 1 + static_cast<int>(std::count(text.begin(), bad, '\n'));
+  const int column = 1 + static_cast<int>(utf8::distance(text.begin() + static_cast<std::ptrdiff_t>(from), bad));
+  char byte[8];
+  std::snprintf(byte, sizeof byte, "0x%02X", static_cast<unsigned>(static_cast<unsigned char>(*bad)));
+  diagnostics.add({label, line, column}, "",
+                  std::string("not UTF-8 text: byte ") + byte +
+                      " (a configuration is UTF-8; save it as UTF-8, e.g. iconv -f latin1 -t utf-8, or see "
+                      "whether the file was damaged)");
+  return false;
+}
+
+}  // namespace
+
 std::optional<YAML::Node> parse_config_yaml(const std::string& text, const std::string& label,
                                             Diagnostics& diagnostics, int max_depth, std::size_t max_nodes) {
+  if (!check_utf8(text, label, diagnostics)) return std::nullopt;
   YAML::Node root;
   try {
     root = YAML::Load(text);

@@ -151,6 +151,16 @@ const std::vector<Case>& cases() {
          return "check " + write_file("evil.yaml", s);
        },
        "may hold only letters, digits"},
+      // Saved as Windows-1252: "µm" is the byte 0xB5; the error points at it (line 10, column
+      // 10: after the head's 8 lines and a comment, inside `units: ["`), the character to retype.
+      {"latin1_unit",
+       [] { return "check " + write_file("latin1.yaml", kValidHead + "# stroke\nunits: [\"\xB5m\"]\n"); },
+       "latin1.yaml:10:10: not UTF-8"},
+      {"latin1_unit_names_the_byte",
+       [] { return "check " + write_file("latin1_b.yaml", kValidHead + "units: [\"\xB5m\"]\n"); },
+       "not UTF-8 text: byte 0xB5"},
+      {"truncated_utf8_sequence_at_the_end",
+       [] { return "run " + write_file("cut.yaml", kValidHead + "# \xCE") + " --quiet"; }, "not UTF-8 text: byte 0xCE"},
       {"pipeline_name_hidden_file",
        [] {
          std::string s = kValidHead;
