@@ -85,6 +85,8 @@ void send_json(httplib::Response& res, const std::string& body) {
 
 Server::Server(Feed& feed, Commands& commands, ServerOptions options)
     : feed_(feed), commands_(commands), options_(std::move(options)), http_(std::make_unique<httplib::Server>()) {
+  http_->new_task_queue = [] { return new httplib::ThreadPool(kMaxPages + kThreadsBesidePages); };
+  http_->set_payload_max_length(kMaxBodyBytes);
   routes();
 }
 
@@ -159,6 +161,15 @@ void Server::routes() {
                         {"topics_watched", c.topics_watched}}.dump());
   });
   http_->Get("/api/stream", [this](const httplib::Request&, httplib::Response& res) {
+    if (open_pages_.fetch_add(1) >= kMaxPages) {
+      open_pages_.fetch_sub(1);
+      res.status = 503;
+      res.set_header("Retry-After", "5");
+      res.set_content("lode scope: " + std::to_string(kMaxPages) +
+                          " pages are open already; close one (this page retries every 5 s)\n",
+                      "text/plain");
+      return;
+    }
     auto page = feed_.attach();
     res.set_header("Cache-Control", "no-store");
     res.set_chunked_content_provider(
@@ -173,12 +184,17 @@ void Server::routes() {
           if (page->closed()) return false;
           for (const auto& m : messages)
             if (!sink.write(m->data(), m->size())) return false;
-          // A comment line now and then: a proxy or the browser would close a silent stream.
+          // A comment line each second of silence: a proxy or the browser would close a silent
+          // stream, and a write is how a page that was closed is noticed (its second write
+          // fails) and its place freed.
           if (!messages.empty()) idle = 0;
-          else if (++idle % 40 == 0) return sink.write(": idle\n\n", 9);
+          else if (++idle % 4 == 0) return sink.write(": idle\n\n", 9);
           return true;
         },
-        [this, page](bool) { feed_.detach(page); });
+        [this, page](bool) {
+          feed_.detach(page);
+          open_pages_.fetch_sub(1);
+        });
   });
 }
 

@@ -7,8 +7,16 @@
 // reach it by rebinding its own name to 127.0.0.1. Anywhere else a token is required
 // (random, printed at start): every request carries it as ?token=, an `X-Lode-Token`
 // header, or the cookie the page's first (token-carrying) load sets; without it, 403.
+//
+// Limits: cpp-httplib serves each connection on a thread of a fixed pool, and a page's stream
+// holds its thread for as long as the page is open. So the pool has room for kMaxPages
+// streams and kThreadsBesidePages other requests beside them; a stream past kMaxPages gets
+// 503 (the page says so and retries), never the last free thread. A request body (a command)
+// over kMaxBodyBytes gets 413 before it is held in memory.
 #pragma once
 
+#include <atomic>
+#include <cstddef>
 #include <memory>
 #include <string>
 
@@ -38,6 +46,10 @@ bool parse_listen(const std::string& text, std::string& host, int& port);
 
 class Server {
  public:
+  static constexpr int kMaxPages = 32;
+  static constexpr int kThreadsBesidePages = 16;
+  static constexpr std::size_t kMaxBodyBytes = 1 << 20;
+
   Server(Feed& feed, Commands& commands, ServerOptions options);
   ~Server();
   Server(const Server&) = delete;
@@ -58,6 +70,7 @@ class Server {
   const ServerOptions options_;
   std::unique_ptr<httplib::Server> http_;
   int port_ = 0;
+  std::atomic<int> open_pages_{0};  ///< streams being served
 };
 
 }  // namespace lode::cli::scope

@@ -555,7 +555,16 @@ function connect() {
   const stream = new EventSource(api('/api/stream'));
   const connection = statusFields('connection');
   stream.onopen = () => { connection.textContent = 'live'; connection.className = 'ok'; };
-  stream.onerror = () => { connection.textContent = 'reconnecting'; connection.className = 'bad'; };
+  stream.onerror = () => {
+    connection.className = 'bad';
+    if (stream.readyState !== EventSource.CLOSED) {
+      connection.textContent = 'reconnecting';  // the browser retries on its own
+      return;
+    }
+    // Refused (503: the scope has as many pages open as it serves) or gone: try again later.
+    connection.textContent = 'refused (too many pages open?), retrying';
+    setTimeout(connect, 5000);
+  };
   stream.addEventListener('signals', (e) => onSignals(JSON.parse(e.data)));
   stream.addEventListener('samples', (e) => {
     receiveSamples(JSON.parse(e.data));
