@@ -353,7 +353,22 @@ std::optional<int> replay_one(const ReplayContext& ctx, const Job& job, ConfigRe
                 outcome->fault.c_str());
     faulted = true;
   }
-  if (job.recorded && !check_bit_identical(ctx.source, job, cr)) mismatch = true;
+  // The replay's own file: written in full, or removed (a disk that filled leaves one HDF5
+  // cannot even open, which `lode plot` or a later comparison would trip over).
+  std::string write_error;
+  const Json services_summary = (*services)->summary();
+  if (const Json* recordings = services_summary.find("recordings"))
+    for (const Json& r : recordings->elements())
+      if (const Json* error = r.find("error")) write_error = error->as_string();
+  if (!write_error.empty()) {
+    std::error_code ignored;
+    fs::remove(job.output, ignored);
+    std::printf("%s: the replay's file %s could not be written (%s); it was removed and nothing was compared\n",
+                job.label.c_str(), job.output.c_str(), write_error.c_str());
+    faulted = true;
+  } else if (job.recorded && !check_bit_identical(ctx.source, job, cr)) {
+    mismatch = true;
+  }
   const int reference_index = tracked->has_reference ? static_cast<int>(tracked->signals.size()) - 1 : -1;
   estimator_statistics(hook, *p, reference_index, tracked->estimators, cr.notes);
   cr.estimators = std::move(tracked->estimators);

@@ -243,7 +243,7 @@ Status RunRecorder::close_locked() {
                                                         std::to_string(first_cycle_.value_or(0)) +
                                                         "): no output digest"
                             : running_.load()      ? std::string("recording stopped mid-run: no output digest")
-                                                  : "cycles dropped by the recorder_: no output digest");
+                                                  : "cycles dropped by the recorder: no output digest");
   }
   auto st = recorder_->close();
   Json j = Json::object();

@@ -328,6 +328,31 @@ def command_flood():
                 recording=f"RSS +{growth_mb:.1f} MB, summary {len(text) / 1e6:.2f} MB")
 
 
+def replay_disk_full():
+    """`lode replay` whose own file cannot be written: said so, the file removed, exit 1."""
+    config = os.path.join(SRC, "config", "kawato_planar.yaml")
+    recording = os.path.join(TMP, "replay_source.h5")
+    rc, out, _ = lode_run(config, "--duration", "5", "--record", recording)
+    expect(rc == 0, f"recording run exit {rc}:\n{out[-1000:]}")
+    mount = os.path.join(TMP, "small_replay")
+    os.makedirs(mount)
+    output = os.path.join(mount, "replayed.h5")
+    # The 5 s recording is about 3.3 MB; the replay's file of the same size fills 1 MB.
+    script = f"mount -t tmpfs -o size=1m tmpfs {mount} || exit 97; \"$@\"; rc=$?; echo \"LEFT: $(ls {mount})\"; exit $rc"
+    p = subprocess.run(["unshare", "-m", "sh", "-c", script, "sh", LODE, "replay", recording, "--quiet",
+                        "--output", output], env=ENV, capture_output=True, text=True, timeout=120)
+    text = p.stdout + p.stderr
+    expect(os.geteuid() == 0 or p.returncode != 97, "needs root: unshare -m and mount a tmpfs")
+    expect(p.returncode == 1, f"replay exit {p.returncode}, expected 1:\n{text[-1500:]}")
+    expect("could not be written" in text and "No space left on device" in text,
+           f"the replay does not say its file could not be written:\n{text[-1500:]}")
+    expect("LEFT:" in p.stdout and "LEFT: replayed.h5" not in p.stdout,
+           f"the unreadable file was left:\n{p.stdout[-500:]}")
+    expect("cannot compare" not in text, f"a comparison with the unwritten file was attempted:\n{text[-1500:]}")
+    return dict(detected="at close", safe="n/a", event="the replay's file could not be written",
+                recording="removed (unreadable), exit 1")
+
+
 def corrupted_recording():
     config = os.path.join(SRC, "config", "kawato_planar.yaml")
     good = os.path.join(TMP, "good.h5")
@@ -373,6 +398,7 @@ CASES = [
     ("stuck_sensor", stuck_sensor),
     ("command_flood", command_flood),
     ("corrupted_recording", corrupted_recording),
+    ("replay_disk_full", replay_disk_full),
 ]
 
 
