@@ -5,7 +5,10 @@
 #include <atomic>
 #include <map>
 #include <string>
+#include <string_view>
 #include <vector>
+
+#include "lode/sdk/status.hpp"
 
 namespace lode::cli {
 
@@ -39,5 +42,15 @@ std::atomic<bool>& stop_requested();
 void install_stop_handlers();
 /// A write to a closed pipe fails with EPIPE instead of killing the process (for every command).
 void ignore_broken_pipes();
+
+/// Writes `text` to the file at `path` (created, or replaced in place) and closes it; an error
+/// naming the path and the system's reason (a full disk, a missing folder, a read-only file)
+/// when any of it did not reach the file.
+Status write_text_file(const std::string& path, std::string_view text);
+
+/// At the end of a command: `exit_code`, or kExitFault after saying so on stderr when what was
+/// printed on standard output did not all reach it (`lode describe > file` on a full disk).
+/// A reader that went away (EPIPE: `lode echo X | head`) is not an error.
+int finish_standard_output(int exit_code);
 
 }  // namespace lode::cli

@@ -7,6 +7,7 @@
 #include <exception>
 #include <vector>
 
+#include "cli.hpp"
 #include "commands.hpp"
 
 int main(int argc, char** argv) {
@@ -18,7 +19,7 @@ int main(int argc, char** argv) {
                                          topics_command(), echo_command(),   record_command(),   set_command(),
                                          swap_command(),   scope_command()};
   try {
-    return run_command_line(argc, argv, commands);
+    return finish_standard_output(run_command_line(argc, argv, commands));
   } catch (const std::exception& ex) {
     std::fprintf(stderr, "lode: internal error: %s\n", ex.what());
     return kExitFault;

@@ -176,13 +176,9 @@ int write_plot_report(const std::vector<std::string>& recordings, const fs::path
   input.error_table = &error_table;
   input.spectra = &spectra;
   const plot::Report report = plot::report_html(input);
-  {
-    std::ofstream out(output, std::ios::binary);
-    out << report.html;
-    if (!out.flush()) {
-      std::fprintf(stderr, "lode: plot: cannot write %s\n", output.c_str());
-      return kExitFault;
-    }
+  if (Status written = write_text_file(output, report.html); !written) {
+    std::fprintf(stderr, "lode: plot: %s\n", written.message().c_str());
+    return kExitFault;
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   if (!quiet) {

@@ -426,13 +426,11 @@ int replay(const Args& args) {
     const int rc = write_plot_report(recordings, a.report, a.quiet);
     if (rc != kExitOk) return rc;
   } else if (!a.report.empty()) {
-    std::ofstream f(a.report);
-    if (!f) {
-      std::fprintf(stderr, "lode: replay: cannot write %s\n", a.report.c_str());
+    const bool json = fs::path(a.report).extension() == ".json";
+    if (Status written = write_text_file(a.report, json ? report.json.dump() + "\n" : report.markdown); !written) {
+      std::fprintf(stderr, "lode: replay: %s\n", written.message().c_str());
       return kExitFault;
     }
-    const bool json = fs::path(a.report).extension() == ".json";
-    f << (json ? report.json.dump() + "\n" : report.markdown);
   }
   return (mismatch || faulted) ? kExitFault : kExitOk;
 }

@@ -305,13 +305,10 @@ int run(const Args& args) {
   const Json summary = finish_run_summary(facts);
   print_run_summary(summary, facts);
   if (args.has("--summary-json")) {
-    const std::string path = args.option("--summary-json");
-    std::ofstream f(path);
-    if (!f) {
-      say(stderr, Severity::error, "lode: cannot write %s\n", path.c_str());
+    if (Status written = write_text_file(args.option("--summary-json"), summary.dump() + "\n"); !written) {
+      say(stderr, Severity::error, "lode: %s\n", written.message().c_str());
       return kExitFault;
     }
-    f << summary.dump() << "\n";
   }
   notifier.status(safe_outcome(result));
   const int rc = result.faulted ? kExitFault : kExitOk;

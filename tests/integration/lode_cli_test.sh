@@ -65,5 +65,23 @@ contains "rt_log warning in events" "$TMP/clip.json" '"kind": "warning"'
 "$LODE" plugins >"$TMP/plugins.out" 2>&1; check_rc "plugins" 0 $?
 contains "plugins lists glsdc" "$TMP/plugins.out" "estimator.glsdc"
 
+# A full disk loses nothing silently: what a command writes (its summary, its report, what it
+# prints) either arrives whole or the command says so and exits 1. /dev/full fails every
+# write with ENOSPC. A reader that leaves early (head) is not a failure.
+if [ -w /dev/full ]; then
+  CFG="$SRC/config/kawato_planar.yaml"
+  "$LODE" run "$CFG" --duration 0.2 --quiet --no-telemetry --no-local-control --summary-json /dev/full \
+    >"$TMP/full_summary.out" 2>&1; check_rc "--summary-json on a full disk" 1 $? "$TMP/full_summary.out"
+  contains "--summary-json says why" "$TMP/full_summary.out" "cannot write /dev/full .*No space left on device"
+  "$LODE" describe "$CFG" >/dev/full 2>"$TMP/full_describe.err"; check_rc "describe > full disk" 1 $? "$TMP/full_describe.err"
+  contains "describe says its output was cut" "$TMP/full_describe.err" "output could not be written in full"
+  "$LODE" check "$CFG" >/dev/full 2>"$TMP/full_check.err"; check_rc "check > full disk" 1 $? "$TMP/full_check.err"
+  contains "check says why" "$TMP/full_check.err" "No space left on device"
+  "$LODE" describe "$CFG" 2>"$TMP/head.err" | head -c 10 >/dev/null
+  check_rc "describe | head: a reader that leaves is no error" 0 "${PIPESTATUS[0]}" "$TMP/head.err"
+else
+  bad "/dev/full is not writable: the full-disk checks did not run"
+fi
+
 if [ $fail -ne 0 ]; then echo "lode_cli_test: FAILED"; exit 1; fi
 echo "lode_cli_test: all passed"
