@@ -623,6 +623,37 @@ TEST(Hdf5RecorderTest, AHeapThatCrashesHdf5IsAnErrorNotACrash) {
   expect_known_content(good);  // the undamaged original reads as before
 }
 
+// A variable-length string is stored as its length, its heap collection's address and its
+// index in it. A damaged length made HDF5 allocate and clear that many bytes (5 GB, 35 s,
+// seen in fuzzing) before it read garbage; the child's memory allowance makes the allocation
+// fail at once, and the file is refused with that, without being read here at all.
+TEST(Hdf5RecorderTest, AStringLengthOfAGigabyteIsRefusedQuickly) {
+  const std::string good = scratch_path("heap_good_3.h5");
+  const std::string bad = scratch_path("string_length.h5");
+  write_known_file_in_child(good, /*crash=*/false);
+  copy_damaged(good, bad, [&](std::string& bytes) {
+    const std::string text = "lodestone-recording";  // the root attribute `format`
+    const std::size_t size_at = heap_object_size_at(bytes, text);
+    ASSERT_NE(size_at, std::string::npos);
+    std::uint16_t index = 0;
+    std::memcpy(&index, bytes.data() + size_at - 8, sizeof index);
+    const std::uint64_t collection = bytes.rfind("GCOL", size_at);
+    std::string reference(16, '\0');  // length (4), collection address (8), index (4)
+    const std::uint32_t length = static_cast<std::uint32_t>(text.size()), index32 = index;
+    std::memcpy(reference.data(), &length, 4);
+    std::memcpy(reference.data() + 4, &collection, 8);
+    std::memcpy(reference.data() + 12, &index32, 4);
+    const std::size_t at = bytes.find(reference);
+    ASSERT_NE(at, std::string::npos) << "no reference to the format string";
+    const std::uint32_t gigabyte = 1u << 30;
+    std::memcpy(bytes.data() + at, &gigabyte, 4);
+  });
+  auto recording = read_recording(bad);
+  ASSERT_FALSE(recording);
+  EXPECT_NE(recording.error().find("attribute 'format'"), std::string::npos) << recording.error();
+  EXPECT_NE(recording.error().find("memory allocation failed"), std::string::npos) << recording.error();
+}
+
 // A zeroed object header sends HDF5 1.10 round a loop it never leaves: the reader stops the
 // child after 20 s without progress and says so, instead of hanging with it.
 TEST(Hdf5RecorderTest, AHeapThatHangsHdf5IsStopped) {

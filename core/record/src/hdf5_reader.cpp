@@ -222,39 +222,63 @@ Expected<SeriesData> read_series(hid_t signals, const std::string& name, std::ve
   return data;
 }
 
-/// What read_column() reads of dataset `name` of `group`, read by HDF5 a slab at a time into
-/// one small buffer and dropped: every chunk reached through the file's index, nothing held.
-bool read_column_through(hid_t group, const std::string& name, hid_t memory_type) {
-  Handle dataset(H5Dopen2(group, name.c_str(), H5P_DEFAULT));
-  if (!dataset.valid()) return false;
+/// What read_column() goes through to read dataset `name` of `group`, without reading all of
+/// it: the first row of every chunk (so HDF5 walks the whole chunk index, finds every chunk
+/// and decodes it: a filtered chunk is decoded whole), converted to `memory_type` as
+/// read_column() converts it. The other rows of an unfiltered chunk are plain bytes next to
+/// the one read: nothing in them can make the library misbehave. A dataset that is not
+/// chunked (written by another tool) is read whole, a slab at a time into one small buffer.
+Status read_column_through(hid_t group, const std::string& name, hid_t memory_type) {
+  // No chunk cache: an unfiltered chunk's one row is read from the file as it is, instead of
+  // the whole chunk into a zeroed buffer first.
+  Handle access(H5Pcreate(H5P_DATASET_ACCESS));
+  H5Pset_chunk_cache(access.get(), 0, 0, H5D_CHUNK_CACHE_W0_DEFAULT);
+  Handle dataset(H5Dopen2(group, name.c_str(), access.get()));
+  if (!dataset.valid()) return Status::error("dataset '" + name + "' is missing");
   Handle space(H5Dget_space(dataset.get()));
   const hssize_t count = H5Sget_simple_extent_npoints(space.get());
-  if (count < 0 || H5Tget_size(memory_type) != 8) return false;
-  constexpr hsize_t kSlabRows = 16384;
-  std::vector<std::uint64_t> slab(kSlabRows);
-  for (hsize_t first = 0; first < static_cast<hsize_t>(count); first += kSlabRows) {
-    const hsize_t rows = std::min<hsize_t>(kSlabRows, static_cast<hsize_t>(count) - first);
-    Handle memory_space(H5Screate_simple(1, &rows, nullptr));
-    if (H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, &first, nullptr, &rows, nullptr) < 0 ||
+  if (count < 0 || H5Sget_simple_extent_ndims(space.get()) != 1)
+    return Status::error("dataset '" + name + "': not a column: " + hdf5_message());
+  if (count == 0) return {};
+  const auto rows = static_cast<hsize_t>(count);
+  Handle create(H5Dget_create_plist(dataset.get()));
+  hsize_t chunk_rows = 0;
+  if (!create.valid() || H5Pget_layout(create.get()) != H5D_CHUNKED || H5Pget_chunk(create.get(), 1, &chunk_rows) != 1 ||
+      chunk_rows == 0) {
+    chunk_rows = 1;  // every row: read whole
+  }
+  const hsize_t chunks = (rows + chunk_rows - 1) / chunk_rows;
+  constexpr hsize_t kSlabRows = 16384;  // rows (one from each chunk) per read
+  std::vector<std::uint64_t> slab(static_cast<std::size_t>(std::min(chunks, kSlabRows)));
+  for (hsize_t first_chunk = 0; first_chunk < chunks; first_chunk += kSlabRows) {
+    const hsize_t start = first_chunk * chunk_rows, stride = chunk_rows;
+    const hsize_t picked = std::min(kSlabRows, chunks - first_chunk);
+    Handle memory_space(H5Screate_simple(1, &picked, nullptr));
+    if (H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, &start, &stride, &picked, nullptr) < 0 ||
         H5Dread(dataset.get(), memory_type, memory_space.get(), space.get(), H5P_DEFAULT, slab.data()) < 0) {
-      return false;
+      return Status::error("dataset '" + name + "': " + hdf5_message());
     }
   }
-  return true;
+  return {};
 }
 
-/// Everything read_series() reads of series `name`, read and dropped (read_column_through).
-bool read_series_through(hid_t signals, const std::string& name) {
+/// Everything read_series() reads of series `name`, read and dropped (read_column_through);
+/// the first error, worded as read_series() words it.
+Status read_series_through(hid_t signals, const std::string& name) {
+  const std::string where = "/signals/" + name + ": ";
   Handle group(H5Gopen2(signals, name.c_str(), H5P_DEFAULT));
-  if (!group.valid()) return false;
+  if (!group.valid()) return Status::error(where + "not a group: " + hdf5_message());
   SeriesData data;
-  if (!read_series_attributes(group.get(), data).is_ok()) return false;
-  bool ok = read_column_through(group.get(), "cycle", H5T_NATIVE_UINT64) &&
-            read_column_through(group.get(), "stamp_ns", H5T_NATIVE_INT64) &&
-            read_column_through(group.get(), "captured_ns", H5T_NATIVE_INT64);
-  for (std::size_t i = 0; ok && i < data.info.names.size(); ++i)
-    ok = read_column_through(group.get(), dataset_name_for(data.info.names[i], i), H5T_NATIVE_DOUBLE);
-  return ok;
+  if (Status attributes = read_series_attributes(group.get(), data); !attributes)
+    return Status::error(where + attributes.message());
+  std::vector<std::pair<std::string, hid_t>> columns = {
+      {"cycle", H5T_NATIVE_UINT64}, {"stamp_ns", H5T_NATIVE_INT64}, {"captured_ns", H5T_NATIVE_INT64}};
+  for (std::size_t i = 0; i < data.info.names.size(); ++i)
+    columns.emplace_back(dataset_name_for(data.info.names[i], i), H5T_NATIVE_DOUBLE);
+  for (const auto& [column, memory_type] : columns)
+    if (Status read = read_column_through(group.get(), column, memory_type); !read)
+      return Status::error(where + read.message());
+  return {};
 }
 
 /// The memory read_series() takes for the series `names` of /signals: the rows of each
@@ -334,7 +358,7 @@ struct OpenRecording {
   std::vector<std::string> names;  ///< of /signals, in the order they were added
 };
 
-bool read_whole_file(const std::string& path);
+Status read_whole_file(const std::string& path);
 
 Expected<OpenRecording> open_recording(const std::string& path, Recording& attributes) {
   silence_hdf5_errors();
@@ -399,20 +423,24 @@ Status read_events(hid_t file, Recording& recording) {
 }
 
 /// Every part of the file that read_recording(), read_cost() and SeriesReader may touch, read
-/// and dropped: what read_first_in_child() runs in its child.
-bool read_whole_file(const std::string& path) {
+/// and dropped: what read_first_in_child() runs in its child. The first error, as a reader
+/// would report it after "recording '<path>': ".
+Status read_whole_file(const std::string& path) {
   Recording recording;
   auto opened = open_recording(path, recording);
-  if (!opened) return false;
+  if (!opened) {
+    const std::string prefix = "recording '" + path + "': ";
+    const std::string& message = opened.error();
+    return Status::error(message.rfind(prefix, 0) == 0 ? message.substr(prefix.size()) : message);
+  }
   note_progress();
   (void)memory_to_read(opened->signals.get(), opened->names);
-  bool ok = true;
   for (const auto& name : opened->names) {
     (void)series_kind(opened->signals.get(), name);
-    ok = read_series_through(opened->signals.get(), name) && ok;
+    if (Status series = read_series_through(opened->signals.get(), name); !series) return series;
     note_progress();
   }
-  return read_events(opened->file.get(), recording).is_ok() && ok;
+  return read_events(opened->file.get(), recording);
 }
 
 }  // namespace

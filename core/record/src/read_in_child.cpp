@@ -10,6 +10,9 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cinttypes>
+#include <cstdint>
+#include <cstdio>
 #include <csignal>
 #include <cstring>
 #include <mutex>
@@ -22,6 +25,9 @@ namespace {
 
 bool in_child = false;
 int progress_fd = -1;  // in the child: the pipe the parent watches
+// On the pipe: a byte per part read, then, if the child met an error, a marker and the message.
+constexpr char kProgress = 1;
+constexpr char kErrorFollows = 2;
 
 /// Longest a child may go without finishing a part of the file (an attribute set, a series,
 /// the events): only a damaged structure takes that long, not a large or slow file.
@@ -60,18 +66,50 @@ bool crash_signal(int signal) {
   }
 }
 
+/// The child's address space: what it has at the fork, twice the file (no part of the file
+/// can hold more than the file), and 256 MiB for HDF5 and the reading. A damaged length then
+/// makes an allocation fail at once instead of clearing gigabytes (seen: a 5 GB string).
+rlim_t memory_allowance(const std::string& path) {
+  std::uint64_t pages = 0;
+  if (std::FILE* statm = std::fopen("/proc/self/statm", "r")) {
+    if (std::fscanf(statm, "%" SCNu64, &pages) != 1) pages = 0;
+    std::fclose(statm);
+  }
+  struct stat st {};
+  const std::uint64_t file = ::stat(path.c_str(), &st) == 0 ? static_cast<std::uint64_t>(st.st_size) : 0;
+  return static_cast<rlim_t>(pages * static_cast<std::uint64_t>(sysconf(_SC_PAGESIZE)) + 2 * file + (256u << 20));
+}
+
+void write_all(int fd, const char* data, std::size_t size) {
+  while (size > 0) {
+    const ssize_t n = ::write(fd, data, size);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return;
+    data += n;
+    size -= static_cast<std::size_t>(n);
+  }
+}
+
 [[noreturn]] void run_child(const std::string& path, ReadWhole read_whole) {
   in_child = true;
   prctl(PR_SET_PDEATHSIG, SIGKILL);  // never outlives the reader that waits for it
   const rlimit no_core{0, 0};
   setrlimit(RLIMIT_CORE, &no_core);  // a crash here is expected: no core file
+  const rlim_t allowance = memory_allowance(path);
+  const rlimit memory{allowance, allowance};
+  setrlimit(RLIMIT_AS, &memory);
   for (int signal : {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT, SIGSYS, SIGTRAP}) std::signal(signal, SIG_DFL);
   // What glibc prints when the heap is found broken is the parent's to say, in its own words.
   if (const int null = ::open("/dev/null", O_WRONLY); null >= 0) {
     dup2(null, STDOUT_FILENO);
     dup2(null, STDERR_FILENO);
   }
-  _exit(read_whole(path) ? 0 : 1);  // _exit: no atexit handlers, no stdio flushed twice
+  const Status read = read_whole(path);
+  if (!read) {
+    const std::string report = std::string(1, kErrorFollows) + read.message();
+    write_all(progress_fd, report.data(), report.size());
+  }
+  _exit(read ? 0 : 1);  // _exit: no atexit handlers, no stdio flushed twice
 }
 
 }  // namespace
@@ -85,9 +123,7 @@ void trust_written_file(const std::string& path) {
 
 void note_progress() {
   if (progress_fd < 0) return;
-  const char step = 1;
-  while (::write(progress_fd, &step, 1) < 0 && errno == EINTR) {
-  }
+  write_all(progress_fd, &kProgress, 1);
 }
 
 Status read_first_in_child(const std::string& path, ReadWhole read_whole) {
@@ -115,6 +151,7 @@ Status read_first_in_child(const std::string& path, ReadWhole read_whole) {
   ::close(progress[1]);
 
   bool stalled = false;
+  std::string from_child;  // from the error marker on
   for (;;) {
     pollfd wait_for{progress[0], POLLIN, 0};
     const int ready = poll(&wait_for, 1, kStallLimitMs);
@@ -123,9 +160,11 @@ Status read_first_in_child(const std::string& path, ReadWhole read_whole) {
       stalled = true;
       break;
     }
-    char steps[64];
-    const ssize_t got = ::read(progress[0], steps, sizeof steps);
+    char bytes[4096];
+    const ssize_t got = ::read(progress[0], bytes, sizeof bytes);
     if (got == 0 || (got < 0 && errno != EINTR && errno != EAGAIN)) break;  // the child has ended
+    if (got > 0 && (!from_child.empty() || std::memchr(bytes, kErrorFollows, static_cast<std::size_t>(got))))
+      from_child.append(bytes, static_cast<std::size_t>(got));
   }
   ::close(progress[0]);
   if (stalled) kill(child, SIGKILL);
@@ -146,8 +185,10 @@ Status read_first_in_child(const std::string& path, ReadWhole read_whole) {
                             (name != nullptr ? name : std::to_string(WTERMSIG(status)).c_str()) +
                             " in a process that reads each recording once before lodestone does); nothing was "
                             "read from it");
+  } else if (WIFEXITED(status) && WEXITSTATUS(status) == 1 && from_child.find(kErrorFollows) != std::string::npos) {
+    verdict = Status::error(from_child.substr(from_child.find(kErrorFollows) + 1));
   } else if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
-    return {};  // an error the child met is the reader's to report, with its context
+    return {};  // stopped from outside (Ctrl-C reaches the child too): no verdict
   }
   std::lock_guard lock(checked_mutex);
   checked_files()[*id] = verdict;

@@ -12,16 +12,18 @@
 
 namespace lode::record::detail {
 
-/// Reads every part of the recording at `path` that a reader may touch; true when all of it
-/// read without an error. Runs in the child; its result is only a hint (an error the parent's
-/// own read will report with its context).
-using ReadWhole = bool (*)(const std::string& path);
+/// Reads every part of the recording at `path` that a reader may touch; the first error, as a
+/// reader reports it after "recording '<path>': ". Runs in the child.
+using ReadWhole = Status (*)(const std::string& path);
 
-/// Ok when `path` was read whole by `read_whole` in a child process that ended normally (or
-/// when this process has already checked or written the same file: same device, inode, size
-/// and modification time); an error when the child crashed or stopped making progress (no
-/// note_progress() for 20 s: a damaged file can send HDF5 round a loop forever). Inside the
-/// child it returns ok at once. A file that cannot be stat'ed is left to the reader's own error.
+/// Ok when `path` was read whole by `read_whole` in a child process (or when this process has
+/// already checked or written the same file: same device, inode, size and modification
+/// time). Otherwise the reason, to follow "recording '<path>': ": the error the child met
+/// (the file is then never read here: a damaged length can make HDF5 allocate and clear
+/// gigabytes before it fails), or that the child crashed, ran out of its memory allowance or
+/// stopped making progress (no note_progress() for 20 s: a damaged file can send HDF5 round
+/// a loop for ever). Inside the child it returns ok at once. A file that cannot be stat'ed
+/// is left to the reader's own error.
 Status read_first_in_child(const std::string& path, ReadWhole read_whole);
 
 /// In the child: a part of the file has been read (the parent stops a child that goes
