@@ -1,10 +1,15 @@
 #include "lode/plugin_loader.hpp"
 
 #include <dlfcn.h>
+#include <elf.h>
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdint>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <set>
 
@@ -21,6 +26,48 @@ std::string executable_dir() {
   const auto exe = fs::read_symlink("/proc/self/exe", ec);
   return ec ? std::string() : exe.parent_path().string();
 }
+/// What dlopen() cannot be trusted with: it blocks for ever opening a FIFO, and maps a
+/// truncated library (an interrupted copy or install) whole, so that the first touch of the
+/// missing part kills the process with SIGBUS. A regular file whose loadable segments all
+/// lie within it passes; anything that is not a 64-bit ELF file is left to dlopen(), which
+/// says what it is.
+Status check_shared_object(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) return {};  // dlopen() says why it cannot be opened
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{fd};
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) return {};
+  if (!S_ISREG(st.st_mode))
+    return Status::error("cannot load plugin file " + path + ": not a regular file (a FIFO, device or socket)");
+  Elf64_Ehdr header{};
+  if (::pread(fd, &header, sizeof header, 0) != static_cast<ssize_t>(sizeof header) ||
+      std::memcmp(header.e_ident, ELFMAG, SELFMAG) != 0 || header.e_ident[EI_CLASS] != ELFCLASS64 ||
+      header.e_phentsize != sizeof(Elf64_Phdr)) {
+    return {};
+  }
+  const auto size = static_cast<std::uint64_t>(st.st_size);
+  const auto truncated = [&](std::uint64_t needed) {
+    return Status::error("cannot load plugin file " + path + ": truncated: its ELF headers need " +
+                         std::to_string(needed) + " bytes and the file has " + std::to_string(size) +
+                         " (an interrupted copy or install? copy it again)");
+  };
+  const std::uint64_t headers_end = header.e_phoff + std::uint64_t{header.e_phnum} * sizeof(Elf64_Phdr);
+  if (headers_end > size) return truncated(headers_end);
+  for (unsigned i = 0; i < header.e_phnum; ++i) {
+    Elf64_Phdr segment{};
+    if (::pread(fd, &segment, sizeof segment, static_cast<off_t>(header.e_phoff + i * sizeof(Elf64_Phdr))) !=
+        static_cast<ssize_t>(sizeof segment)) {
+      return truncated(headers_end);
+    }
+    if ((segment.p_type == PT_LOAD || segment.p_type == PT_DYNAMIC) && segment.p_offset + segment.p_filesz > size)
+      return truncated(segment.p_offset + segment.p_filesz);
+  }
+  return {};
+}
+
 }  // namespace
 
 std::vector<std::string> PluginRegistry::default_search_path() {
@@ -56,6 +103,7 @@ Expected<LoadedPlugin> PluginRegistry::load_file(const std::string& path) {
     std::lock_guard lock(mutex_);
     if (auto it = by_path_.find(path); it != by_path_.end()) return it->second;
   }
+  if (Status usable = check_shared_object(path); !usable) return usable;
   void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
   if (!handle) {
     const char* why = dlerror();

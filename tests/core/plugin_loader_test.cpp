@@ -1,8 +1,14 @@
 // The loader refuses what is not a plugin, or a plugin of another ABI, with a clear message.
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <gtest/gtest.h>
 
 #include "lode/sdk/testing/block_host.hpp"
+#include "lode/sdk/testing/scratch_dir.hpp"
 #include "lode/plugin_loader.hpp"
 
 namespace {
@@ -45,6 +51,34 @@ TEST(PluginLoader, APortOutsideThePortTableOrOneLeftOutIsRefused) {
   const std::string why = h.diagnostics();
   EXPECT_NE(why.find("declared output 'out' that its port table does not list"), std::string::npos) << why;
   EXPECT_NE(why.find("did not declare output 'value'"), std::string::npos) << why;
+}
+
+// An interrupted copy or install leaves a library shorter than its headers say; dlopen()
+// maps it whole and the first touch of the missing part killed the process with SIGBUS.
+TEST(PluginLoader, ATruncatedPluginIsRefusedNotACrash) {
+  const std::string whole = LODE_BAD_PLUGIN_DIR "/lode-test.no_symbol.so";
+  const std::string cut = lode::testing::scratch_path("lode-test.truncated.so");
+  std::filesystem::copy_file(whole, cut, std::filesystem::copy_options::overwrite_existing);
+  std::filesystem::resize_file(cut, 3000);
+  lode::PluginRegistry reg(std::vector<std::string>{});
+  auto r = reg.load_file(cut);
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().find(cut + ": truncated: its ELF headers need"), std::string::npos) << r.error();
+  EXPECT_NE(r.error().find("and the file has 3000"), std::string::npos) << r.error();
+}
+
+// A FIFO named like a plugin: dlopen() would wait for a writer for ever (`lode plugins` hung).
+TEST(PluginLoader, AFifoNamedLikeAPluginIsRefusedNotWaitedFor) {
+  const std::filesystem::path dir = lode::testing::scratch_path("fifo_plugins");
+  std::filesystem::create_directories(dir);
+  const std::string fifo = (dir / "lode-test.fifo.so").string();
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  ::alarm(60);  // a hang fails the test (SIGALRM) instead of waiting for ctest's timeout
+  lode::PluginRegistry reg({dir.string()});
+  const auto listing = reg.discover_all();
+  ::alarm(0);
+  ASSERT_EQ(listing.errors.size(), 1u);
+  EXPECT_NE(listing.errors[0].find(fifo + ": not a regular file"), std::string::npos) << listing.errors[0];
 }
 
 TEST(PluginLoader, UnknownNameListsTheSearchPath) {
