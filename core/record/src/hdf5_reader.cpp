@@ -531,9 +531,7 @@ Expected<std::shared_ptr<const Recording>> read_recording_shared(const std::stri
     return std::shared_ptr<const Recording>(std::make_shared<Recording>(std::move(*r)));
   }
   // The file's identity and version: a file rewritten in between is read again.
-  const std::string key = std::to_string(st.st_dev) + ":" + std::to_string(st.st_ino) + ":" +
-                          std::to_string(st.st_size) + ":" + std::to_string(st.st_mtim.tv_sec) + "." +
-                          std::to_string(st.st_mtim.tv_nsec) + ":" + selection.key;
+  const std::string key = file_identity(st) + ":" + selection.key;
   static std::mutex mutex;
   static std::map<std::string, std::weak_ptr<const Recording>> held;
   std::lock_guard lock(mutex);

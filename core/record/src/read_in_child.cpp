@@ -41,12 +41,11 @@ std::map<std::string, Status>& checked_files() {
   return files;
 }
 
-/// Device, inode, size and modification time: a file rewritten since is checked again.
+/// A regular file's file_identity(): a file rewritten since is checked again.
 std::optional<std::string> identity(const std::string& path) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return std::nullopt;
-  return std::to_string(st.st_dev) + ":" + std::to_string(st.st_ino) + ":" + std::to_string(st.st_size) + ":" +
-         std::to_string(st.st_mtim.tv_sec) + "." + std::to_string(st.st_mtim.tv_nsec);
+  return file_identity(st);
 }
 
 /// Signals that mean the library failed on the file, not that somebody stopped the child
@@ -113,6 +112,11 @@ void write_all(int fd, const char* data, std::size_t size) {
 }
 
 }  // namespace
+
+std::string file_identity(const struct stat& st) {
+  return std::to_string(st.st_dev) + ":" + std::to_string(st.st_ino) + ":" + std::to_string(st.st_size) + ":" +
+         std::to_string(st.st_mtim.tv_sec) + "." + std::to_string(st.st_mtim.tv_nsec);
+}
 
 void trust_written_file(const std::string& path) {
   if (auto id = identity(path)) {

@@ -6,11 +6,17 @@
 // with the reason, and this process never touches it.
 #pragma once
 
+#include <sys/stat.h>
+
 #include <string>
 
 #include "lode/sdk/status.hpp"
 
 namespace lode::record::detail {
+
+/// A file's identity and version from its stat: device, inode, size and modification time.
+/// Equal for the same file unchanged; a file rewritten in between gets another.
+std::string file_identity(const struct stat& st);
 
 /// Reads every part of the recording at `path` that a reader may touch; the first error, as a
 /// reader reports it after "recording '<path>': ". Runs in the child.
