@@ -13,6 +13,8 @@
 #include <filesystem>
 #include <set>
 
+#include "plugin_load_guard.hpp"
+
 namespace fs = std::filesystem;
 
 namespace lode {
@@ -104,19 +106,24 @@ Expected<LoadedPlugin> PluginRegistry::load_file(const std::string& path) {
     if (auto it = by_path_.find(path); it != by_path_.end()) return it->second;
   }
   if (Status usable = check_shared_object(path); !usable) return usable;
-  void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
-  if (!handle) {
-    const char* why = dlerror();
-    return Status::error("cannot load plugin file " + path + ": " + (why ? why : "unknown dlopen error"));
+  const PluginDescriptor* d = nullptr;
+  {
+    // The plugin's static constructors run in dlopen(), its entry point just after: a crash in
+    // either names the file.
+    detail::PluginLoadGuard guard(path);
+    void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+    if (!handle) {
+      const char* why = dlerror();
+      return Status::error("cannot load plugin file " + path + ": " + (why ? why : "unknown dlopen error"));
+    }
+    dlerror();
+    void* symbol = dlsym(handle, kPluginSymbol);
+    if (!symbol) {
+      return Status::error(path + " is not a lodestone plugin: it does not export the symbol '" +
+                           std::string(kPluginSymbol) + "' (use the LODE_PLUGIN macro)");
+    }
+    d = reinterpret_cast<PluginEntry>(symbol)();
   }
-  dlerror();
-  void* symbol = dlsym(handle, kPluginSymbol);
-  if (!symbol) {
-    return Status::error(path + " is not a lodestone plugin: it does not export the symbol '" +
-                         std::string(kPluginSymbol) + "' (use the LODE_PLUGIN macro)");
-  }
-  auto entry = reinterpret_cast<PluginEntry>(symbol);
-  const PluginDescriptor* d = entry();
   if (!d) return Status::error(path + ": " + kPluginSymbol + "() returned null");
   if (d->abi_version != kPluginAbiVersion || d->descriptor_size != sizeof(PluginDescriptor)) {
     return Status::error(path + ": plugin ABI version " + std::to_string(d->abi_version) +

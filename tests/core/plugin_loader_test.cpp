@@ -1,4 +1,5 @@
 // The loader refuses what is not a plugin, or a plugin of another ABI, with a clear message.
+#include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -79,6 +80,36 @@ TEST(PluginLoader, AFifoNamedLikeAPluginIsRefusedNotWaitedFor) {
   ::alarm(0);
   ASSERT_EQ(listing.errors.size(), 1u);
   EXPECT_NE(listing.errors[0].find(fifo + ": not a regular file"), std::string::npos) << listing.errors[0];
+}
+
+// A plugin whose static constructor crashes takes the process with it (its code runs inside
+// dlopen()), but the last line on stderr names the file, so the user knows which one to remove.
+TEST(PluginLoaderDeathTest, APluginThatCrashesWhileLoadingIsNamed) {
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
+  const std::string crashing = LODE_BAD_PLUGIN_DIR "/lode-test.crashes_at_load.so";
+  EXPECT_EXIT(
+      {
+        lode::PluginRegistry reg(std::vector<std::string>{});
+        (void)reg.load_file(crashing);
+      },
+      ::testing::KilledBySignal(SIGSEGV),
+      "lode: SIGSEGV while loading the plugin " + crashing + ": its own start-up code crashed");
+}
+
+extern "C" void test_segv_handler(int) {}
+
+// After a load, the process's handlers for fatal signals are what they were before it (a
+// running pipeline's crash guard, during a hot swap's load).
+TEST(PluginLoader, LoadingLeavesTheSignalHandlersAsTheyWere) {
+  struct sigaction mine {};
+  mine.sa_handler = test_segv_handler;
+  struct sigaction original {};
+  ASSERT_EQ(::sigaction(SIGSEGV, &mine, &original), 0);
+  lode::PluginRegistry reg(std::vector<std::string>{});
+  (void)reg.load_file(LODE_BAD_PLUGIN_DIR "/lode-test.wrong_abi.so");
+  struct sigaction after {};
+  ASSERT_EQ(::sigaction(SIGSEGV, &original, &after), 0);
+  EXPECT_EQ(reinterpret_cast<void*>(after.sa_handler), reinterpret_cast<void*>(test_segv_handler));
 }
 
 TEST(PluginLoader, UnknownNameListsTheSearchPath) {
