@@ -58,6 +58,10 @@ struct Source {
   /// while it is held here. The other series are read one at a time for the comparison.
   std::shared_ptr<const record::Recording> recording;
   std::size_t rows = 0;  ///< cycles to replay
+  /// The recorded cycle numbers of those rows, when they skip some (the periods the recording's
+  /// real-time loop skipped after overruns); empty when they are 0, 1, 2, ...
+  std::vector<std::uint64_t> cycles;
+  std::uint64_t skipped = 0;  ///< cycle numbers missing between the first row and the last
   DigestAlgorithm digest = kLegacyDigestAlgorithm;  ///< what its output_digest was computed with
 
   [[nodiscard]] std::string text(const std::string& key) const {
@@ -103,13 +107,19 @@ std::optional<Source> open_recording(const std::string& path) {
   // The number of cycles to run: the rows of the raw series (every one is checked for
   // gaps by io.replay), else of any series.
   std::uint64_t first_cycle = 0;
+  const record::SeriesData* played = nullptr;
   for (const auto& series : s.recording->series) {
     if (series.rows() == 0) continue;
     if (s.rows == 0 || series.info.kind == "raw") {
       s.rows = series.rows();
       first_cycle = series.cycle.front();
+      played = &series;
       if (series.info.kind == "raw") break;
     }
+  }
+  if (played && played->info.kind == "raw" && played->cycle.back() + 1 > first_cycle + s.rows) {
+    s.cycles.assign(played->cycle.begin(), played->cycle.end());
+    s.skipped = played->cycle.back() + 1 - first_cycle - s.rows;
   }
   if (s.rows == 0) {
     std::fprintf(stderr, "lode: replay: %s holds no samples\n", path.c_str());
@@ -311,6 +321,9 @@ std::optional<int> replay_one(const ReplayContext& ctx, const Job& job, ConfigRe
   LogDrain drain(events);
   SimulatedClock clock;
   Scheduler sched(*p, clock, events);
+  // The cycles the recorded run ran, no more: the ticks (cycle number, time) each block sees
+  // are then the recorded run's, and so are its outputs.
+  if (!ctx.source.cycles.empty()) sched.follow_cycles(ctx.source.cycles);
   RunServiceOptions options;
   options.telemetry = false;
   options.local_control = false;  // a replay is not commanded
@@ -334,16 +347,21 @@ std::optional<int> replay_one(const ReplayContext& ctx, const Job& job, ConfigRe
   // The speed reported covers the cycles and writing the replay's file in full (closed), so
   // that writing it at the end rather than during the cycles cannot make a replay look faster.
   const auto started = std::chrono::steady_clock::now();
-  const auto outcome = execute_run(*p, sched, events, **services, rows,
+  const std::uint64_t cycle_bound = ctx.source.cycles.empty() ? rows : ctx.source.cycles.back() + 1;
+  const auto outcome = execute_run(*p, sched, events, **services, cycle_bound,
                                    "replay of " + ctx.source.path + " through " + job.label,
                                    [&] { (*services)->on_idle(); }, [&] { drain.stop(); });
   if (!outcome) {
     std::fprintf(stderr, "lode: replay: %s: %s\n", job.label.c_str(), outcome.error().c_str());
     return kExitFault;
   }
-  cr.cycles = sched.stats().cycles.load();
+  cr.cycles = sched.stats().executed.load();
   cr.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-  cr.speed = cr.wall_s > 0 ? static_cast<double>(cr.cycles) / p->rate_hz() / cr.wall_s : 0.0;
+  // Real time: the stage time the replayed cycles cover (skipped periods included).
+  cr.speed = cr.wall_s > 0 ? static_cast<double>(sched.stats().cycles.load()) / p->rate_hz() / cr.wall_s : 0.0;
+  if (ctx.source.skipped > 0)
+    cr.notes.push_back(std::to_string(ctx.source.skipped) +
+                       " periods the recorded real-time loop skipped after overruns are skipped here too");
   cr.digest = (*services)->output_digest();
   cr.digest_algorithm = digest_algorithm_name((*services)->output_digest_algorithm());
   std::printf("%s: %llu cycles in %.3f s wall, %.0fx real time (%g Hz)\n", job.label.c_str(),

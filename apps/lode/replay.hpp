@@ -66,10 +66,10 @@ class CompareHook final : public CycleHook {
     n.values.assign(capacity_, std::nan(""));
     nis_[name] = std::move(n);
   }
+  // Row by row in the order the cycles run (a replay may skip cycle numbers, as its recording did).
   void after_cycle(const Tick& tick) noexcept override {
-    if (tick.cycle >= capacity_) return;
-    const std::size_t k = tick.cycle;
-    rows_ = std::max(rows_, k + 1);
+    if (rows_ >= capacity_) return;
+    const std::size_t k = rows_++;
     time_s_[k] = static_cast<double>(tick.time_ns) * 1e-9;
     for (std::size_t i = 0; i < signals_.size(); ++i)
       std::memcpy(values_[i].data() + k * signals_[i].size(), signals_[i].data, signals_[i].size() * sizeof(double));

@@ -78,6 +78,13 @@ StepStatus BlockHost::step() {
   return impl_->dut->step(impl_->tick);
 }
 
+StepStatus BlockHost::step_at(std::uint64_t cycle) {
+  impl_->tick.cycle = cycle;
+  impl_->tick.time_ns = static_cast<std::int64_t>(static_cast<double>(cycle) * 1e9 / impl_->rate_hz + 0.5);
+  impl_->stepped = true;
+  return impl_->dut->step(impl_->tick);
+}
+
 StepStatus BlockHost::write() { return board().write(impl_->tick); }
 
 void BlockHost::deactivate() { impl_->pipeline->deactivate(); }

@@ -156,7 +156,8 @@ RunResult Scheduler::run_simulated(std::uint64_t cycles, const std::atomic<bool>
   const std::int64_t period = pipeline_.period_ns();
   Tick tick;
   tick.dt_s = 1.0 / pipeline_.rate_hz();
-  for (std::uint64_t k = 0; cycles == 0 || k < cycles; ++k) {
+  const bool follow = !followed_cycles_.empty();
+  for (std::uint64_t k = 0; follow ? k < followed_cycles_.size() : (cycles == 0 || k < cycles); ++k) {
     if (fault_requested_.load(std::memory_order_relaxed)) {
       pipeline_.drive_safe();
       break;
@@ -165,8 +166,9 @@ RunResult Scheduler::run_simulated(std::uint64_t cycles, const std::atomic<bool>
       result.stopped_by_request = true;
       break;
     }
-    tick.cycle = k;
-    tick.time_ns = static_cast<std::int64_t>(k) * period;
+    tick.cycle = follow ? followed_cycles_[k] : k;
+    if (follow && cycles != 0 && tick.cycle >= cycles) break;
+    tick.time_ns = static_cast<std::int64_t>(tick.cycle) * period;
     clock_.sleep_until(tick.time_ns);
     if (!cycle(tick, true, result)) break;
     // Drain often enough that no tap can overflow: a simulated run is never lossy.

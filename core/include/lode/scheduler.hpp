@@ -123,6 +123,13 @@ class Scheduler {
   /// cycle); the real clock always measures every cycle.
   void set_simulated_timing_stride(std::uint64_t n) { simulated_timing_stride_ = n > 0 ? n : 1; }
 
+  /// On the simulated clock, run only these cycle numbers (ascending), each with the time of
+  /// its period, as a recording's real-time loop ran them: with `overrun_policy: skip` a late
+  /// cycle's successors skip the periods already lost, and a replay must give every block the
+  /// same ticks to compute the same outputs. `cycles` in run() then bounds the cycle numbers,
+  /// as it does on the real clock. Empty (the default): every cycle.
+  void follow_cycles(std::vector<std::uint64_t> cycle_numbers) { followed_cycles_ = std::move(cycle_numbers); }
+
   /// Run `cycles` cycles (0 = until `stop` is set). `on_idle` runs on the calling thread,
   /// never on the RT thread. The pipeline must be active.
   RunResult run(std::uint64_t cycles, const std::atomic<bool>& stop,
@@ -150,6 +157,7 @@ class Scheduler {
   std::vector<CycleHook*> hooks_;
   bool time_ops_ = true;
   std::uint64_t simulated_timing_stride_ = 1;
+  std::vector<std::uint64_t> followed_cycles_;
   RunStats stats_;
   // Fault details written by the RT thread, read after it joins.
   int fault_op_ = -1;

@@ -91,31 +91,54 @@ Status ReplayBoard::configure(ConfigureContext& ctx) {
     streams_.push_back(std::move(st));
   }
 
-  // Every series must hold the same contiguous run of cycles: a replay cannot invent a
-  // sample the recorder lost.
+  // Every series must hold the same cycles. A recording may skip cycle numbers: the periods its
+  // real-time loop skipped after an overrun (`overrun_policy: skip`), which no block ran. What
+  // the recorder itself failed to keep (its `dropped_cycles`) did run: a replay cannot invent
+  // those samples, so a gap is refused then.
   const Stream& first = streams_.front();
   rows_ = first.rows;
   first_cycle_ = rows_ > 0 ? first.cycle[0] : 0;
+  const auto dropped = rec->number_attributes.find("dropped_cycles");
+  const bool recorder_lost_cycles = dropped != rec->number_attributes.end() && dropped->second > 0;
   bool ok = true;
   if (rows_ == 0) {
     params.fail("recording", "series '" + prefix + first.port + "' in '" + path_ + "' has no samples");
     ok = false;
   }
-  for (const auto& st : streams_) {
-    const std::string name = prefix + st.port;
-    // A gap first: it is the cause when the lengths differ too.
-    bool gap = false;
-    for (std::size_t k = 0; k < st.rows; ++k) {
-      if (st.cycle[k] != first_cycle_ + k) {
-        params.fail("recording", "series '" + name + "' in '" + path_ + "' has a gap: row " + std::to_string(k) +
-                                     " is cycle " + std::to_string(st.cycle[k]) + ", expected " +
-                                     std::to_string(first_cycle_ + k) + " (cycles were dropped while recording)");
-        ok = false;
-        gap = true;
-        break;
-      }
+  for (std::size_t k = 1; ok && k < rows_; ++k) {
+    if (first.cycle[k] <= first.cycle[k - 1]) {
+      params.fail("recording", "series '" + prefix + first.port + "' in '" + path_ + "': row " + std::to_string(k) +
+                                   " is cycle " + std::to_string(first.cycle[k]) + ", not after cycle " +
+                                   std::to_string(first.cycle[k - 1]) + " (a damaged recording?)");
+      ok = false;
+    } else if (first.cycle[k] != first.cycle[k - 1] + 1 && recorder_lost_cycles) {
+      params.fail("recording", "series '" + prefix + first.port + "' in '" + path_ + "' has a gap: row " +
+                                   std::to_string(k) + " is cycle " + std::to_string(first.cycle[k]) + ", expected " +
+                                   std::to_string(first.cycle[k - 1] + 1) + " (the recorder lost " +
+                                   std::to_string(static_cast<std::uint64_t>(dropped->second)) +
+                                   " cycles: their samples are not in the file)");
+      ok = false;
+    } else if (first.cycle[k] != first.cycle[k - 1] + 1) {
+      skipped_cycles_ += first.cycle[k] - first.cycle[k - 1] - 1;
     }
-    if (!gap && st.rows != rows_) {
+  }
+  for (const auto& st : streams_) {
+    if (!ok || &st == &first) continue;
+    const std::string name = prefix + st.port;
+    // A cycle one series has and another has not: the recorder dropped it from one (checked
+    // first: it is the cause when the lengths differ too).
+    const std::size_t common = std::min(st.rows, rows_);
+    const std::size_t at = static_cast<std::size_t>(std::mismatch(st.cycle, st.cycle + common, first.cycle).first - st.cycle);
+    if (at < common) {
+      const bool missing_here = st.cycle[at] > first.cycle[at];
+      const Stream& other = missing_here ? first : st;
+      params.fail("recording", "series '" + (missing_here ? name : prefix + first.port) + "' in '" + path_ +
+                                   "' has a gap: row " + std::to_string(at) + " is cycle " +
+                                   std::to_string(missing_here ? st.cycle[at] : first.cycle[at]) + ", expected " +
+                                   std::to_string(other.cycle[at]) + " (as in '" + prefix + other.port +
+                                   "': cycles were dropped while recording)");
+      ok = false;
+    } else if (st.rows != rows_) {
       params.fail("recording", "series '" + name + "' in '" + path_ + "' has " + std::to_string(st.rows) +
                                    " samples, '" + prefix + first.port + "' has " + std::to_string(rows_));
       ok = false;
@@ -137,13 +160,25 @@ void ReplayBoard::copy_row(std::size_t row) noexcept {
 }
 
 StepStatus ReplayBoard::step(const Tick& tick) noexcept {
-  if (tick.cycle < first_cycle_) return fault("recording has no sample for this cycle");
-  const std::uint64_t row = tick.cycle - first_cycle_;
+  // The row of this cycle: the one after the last in a run that goes forward (every cycle, or
+  // the recorded ones), else found by bisection.
+  const std::uint64_t* cycles = streams_.front().cycle;
+  std::size_t row = next_row_;
+  if (row >= rows_ || cycles[row] != tick.cycle)
+    row = static_cast<std::size_t>(std::lower_bound(cycles, cycles + rows_, tick.cycle) - cycles);
   if (row >= rows_) return fault("end of recording");
-  for (const auto& st : streams_)
-    if (st.cycle[row] != tick.cycle) return fault("recording has no sample for this cycle");
-  copy_row(static_cast<std::size_t>(row));
+  if (tick.cycle < first_cycle_) return fault("recording has no sample for this cycle (it starts later)");
+  if (cycles[row] != tick.cycle)
+    return fault("the recording has no sample for this cycle: its real-time loop skipped it after an overrun "
+                 "(`lode replay` runs the recorded cycles only)");
+  copy_row(row);
+  next_row_ = row + 1;
   return StepStatus::ok;
+}
+
+std::vector<std::uint64_t> ReplayBoard::recorded_cycles() const {
+  if (streams_.empty()) return {};
+  return {streams_.front().cycle, streams_.front().cycle + rows_};
 }
 
 void ReplayBoard::describe(Json& out) const {
@@ -151,6 +186,7 @@ void ReplayBoard::describe(Json& out) const {
   out["block"] = block_;
   out["rows"] = static_cast<std::uint64_t>(rows_);
   out["first_cycle"] = first_cycle_;
+  out["skipped_cycles"] = skipped_cycles_;
   Json series = Json::array();
   for (const auto& st : streams_) {
     Json s = Json::object();

@@ -11,10 +11,12 @@
 //
 // configure() reads the chosen block's series once, not the whole recording (the raw series
 // through lode::record::read_recording_shared: when `lode replay` has already read them, that
-// copy is used) and plays them back; a gap in them (a dropped cycle) or series of different lengths
-// is a configuration error at `recording`. step() copies row tick.cycle - first_cycle of every
-// series into its output after checking the recorded cycle number: the replay is bit-exact
-// (the doubles are copied, never recomputed). Past the last row it faults "end of recording".
+// copy is used) and plays them back. Series of different lengths or cycles, or a gap where the
+// recorder lost cycles (its `dropped_cycles`), are a configuration error at `recording`; the
+// cycles a real-time loop skipped after an overrun are not (no block ran them). step() copies
+// the row recorded for tick.cycle of every series into its output: the replay is bit-exact
+// (the doubles are copied, never recomputed). A cycle with no row faults; past the last row it
+// faults "end of recording".
 //
 // Threads: configure()/activate()/describe() on the loader thread; step()/write() on the RT
 // thread (memcpy from memory loaded in configure(), no allocation).
@@ -45,6 +47,11 @@ class ReplayBoard final : public Block, public Board {
   /// Rows (cycles) available; the first one is recorded cycle first_cycle().
   [[nodiscard]] std::size_t rows() const noexcept { return rows_; }
   [[nodiscard]] std::uint64_t first_cycle() const noexcept { return first_cycle_; }
+  /// Cycle numbers between the first and the last row that the recording has no row for: the
+  /// periods its real-time loop skipped after overruns.
+  [[nodiscard]] std::uint64_t skipped_cycles() const noexcept { return skipped_cycles_; }
+  /// The recorded cycle number of each row (allocates: not for step()).
+  [[nodiscard]] std::vector<std::uint64_t> recorded_cycles() const;
 
  private:
   struct Stream {
@@ -66,6 +73,8 @@ class ReplayBoard final : public Block, public Board {
   std::vector<Stream> streams_;
   std::size_t rows_ = 0;
   std::uint64_t first_cycle_ = 0;
+  std::uint64_t skipped_cycles_ = 0;
+  std::size_t next_row_ = 0;  ///< the row step() expects next (RT thread)
   std::vector<std::string> warnings_;  ///< from read_recording (e.g. a crashed writer's file)
   InputPort command_;
 };

@@ -26,7 +26,10 @@ std::string temp_file(const std::string& name) { return lode::testing::scratch_p
 
 /// A recording of board "stage" (signals a/b in V, truth x in m) and an estimator output,
 /// for cycles 0 .. n-1, skipping cycle `skip` in stage.signals when skip >= 0.
-std::string make_recording(const std::string& name, std::size_t n, long skip = -1, std::size_t short_by = 0) {
+// `skip`: a cycle stage.signals has no row for (the recorder dropped it); with `skipped_by_loop`,
+// no series has (the real-time loop skipped that period).
+std::string make_recording(const std::string& name, std::size_t n, long skip = -1, std::size_t short_by = 0,
+                           bool skipped_by_loop = false) {
   const std::string path = temp_file(name);
   auto r = lode::record::Recorder::create(path, "lode run");
   EXPECT_TRUE(r) << r.error();
@@ -52,6 +55,7 @@ std::string make_recording(const std::string& name, std::size_t n, long skip = -
     const auto stamp = static_cast<std::int64_t>(k) * 1250000;
     const double x = 1e-6 * static_cast<double>(k) + 1e-9 / 3.0;  // not a short binary fraction
     const double ab[2] = {std::sin(0.1 * static_cast<double>(k)), -0.0};
+    if (skipped_by_loop && static_cast<long>(k) == skip) continue;
     if (k + short_by < n) rec.append(t, k, stamp, 0, &x);
     if (static_cast<long>(k) != skip) rec.append(s, k, stamp, 0, ab);
     rec.append(p, k, stamp, 0, &x);
@@ -109,6 +113,27 @@ TEST(IoReplay, AGapIsALocatedError) {
   EXPECT_NE(d.find("blocks.dut.recording"), std::string::npos) << d;
   EXPECT_NE(d.find("stage.signals"), std::string::npos) << d;
   EXPECT_NE(d.find("gap: row 17 is cycle 18, expected 17"), std::string::npos) << d;
+}
+
+// A period the real-time loop skipped after an overrun has no row in any series: no block ran
+// it. The recorded cycles around it play back; the skipped one faults, naming why.
+TEST(IoReplay, APeriodTheLoopSkippedIsPlayedAroundNotRefused) {
+  const auto path = make_recording("skipped.h5", 40, 17, 0, true);
+  lode::testing::BlockHarness h("io.replay", "recording: " + path + "\nblock: stage", 800.0);
+  ASSERT_TRUE(h.configure()) << h.diagnostics();
+  ASSERT_TRUE(h.activate());
+  const lode::Json described = h.describe();
+  ASSERT_NE(described.find("skipped_cycles"), nullptr);
+  EXPECT_EQ(described.find("skipped_cycles")->as_number(), 1.0);
+  for (std::uint64_t k : {0, 1, 2, 16, 18, 19, 39}) {
+    ASSERT_EQ(h.step_at(k), lode::StepStatus::ok) << "cycle " << k << ": " << h.block().fault_reason();
+    EXPECT_EQ(h.output("truth")[0], 1e-6 * static_cast<double>(k) + 1e-9 / 3.0) << k;
+  }
+  EXPECT_EQ(h.step_at(17), lode::StepStatus::fault);
+  EXPECT_NE(std::string(h.block().fault_reason()).find("its real-time loop skipped it"), std::string::npos)
+      << h.block().fault_reason();
+  EXPECT_EQ(h.step_at(40), lode::StepStatus::fault);
+  EXPECT_STREQ(h.block().fault_reason(), "end of recording");
 }
 
 TEST(IoReplay, SeriesOfDifferentLengthsAreALocatedError) {

@@ -42,6 +42,8 @@ class BlockHost {
   Status configure();
   Status activate();
   StepStatus step();   ///< advances the tick
+  /// The tick jumps to `cycle` (as a real-time loop's after it skipped periods), then step().
+  StepStatus step_at(std::uint64_t cycle);
   StepStatus write();  ///< io blocks: write phase of the current tick
   void deactivate();
 
