@@ -292,10 +292,16 @@ struct ReplayContext {
   const std::map<std::string, std::string>& recorded_plugins;
 };
 
-/// Replays one configuration into `cr`; returns an exit code when the replay cannot go on
-/// (nullopt: it ran, faulted or not).
-std::optional<int> replay_one(const ReplayContext& ctx, const Job& job, ConfigResult& cr, bool& mismatch,
-                              bool& faulted) {
+/// One configuration loaded for its replay, with what it will compare.
+struct Prepared {
+  std::unique_ptr<Pipeline> pipeline;
+  ConfigResult cr;
+  Tracked tracked;
+};
+
+/// Loads one configuration for its replay (io blocks replaced by io.replay) and chooses what
+/// it compares; nullopt after printing why it cannot be replayed.
+std::optional<Prepared> prepare_one(const ReplayContext& ctx, const Job& job) {
   std::vector<std::string> replaced;
   std::string note;
   const std::string text = rewrite_for_replay(job.text, ctx.source.absolute, ctx.registry, replaced, note);
@@ -306,8 +312,20 @@ std::optional<int> replay_one(const ReplayContext& ctx, const Job& job, ConfigRe
     std::fputs(diag.format().c_str(), stderr);
     std::fprintf(stderr, "lode: replay: %zu problem%s in %s; nothing was replayed%s\n", diag.size(),
                  diag.size() == 1 ? "" : "s", label.c_str(), note.empty() ? "" : (" (" + note + ")").c_str());
-    return kExitConfig;
+    return std::nullopt;
   }
+  // Another rate would step the blocks with another period over samples taken every recorded
+  // period: each filter's model would be wrong by that ratio, and the comparison meaningless.
+  const auto recorded_rate = ctx.source.number("rate_hz");
+  if (!job.recorded && recorded_rate && p->rate_hz() != *recorded_rate) {
+    std::fprintf(stderr,
+                 "lode: replay: %s: rate_hz %g differs from the recording's %g Hz: its blocks would step the "
+                 "recorded samples with another period; set rate_hz: %g; nothing was replayed\n",
+                 job.label.c_str(), p->rate_hz(), *recorded_rate, *recorded_rate);
+    return std::nullopt;
+  }
+  Prepared prepared;
+  ConfigResult& cr = prepared.cr;
   cr.label = job.label;
   cr.recorded = job.recorded;
   cr.output = job.output;
@@ -315,8 +333,19 @@ std::optional<int> replay_one(const ReplayContext& ctx, const Job& job, ConfigRe
   if (replaced.empty()) cr.notes.push_back("no io block to replace: the configuration does not read the recording");
   note_differences(*p, job, ctx.source, ctx.recorded_plugins, cr);
   auto tracked = select_signals(*p, ctx.args, job, cr);
-  if (!tracked) return kExitConfig;
+  if (!tracked) return std::nullopt;
+  prepared.tracked = std::move(*tracked);
+  prepared.pipeline = std::move(p);
+  return prepared;
+}
 
+/// Replays one prepared configuration into its ConfigResult; returns an exit code when the
+/// replay cannot go on (nullopt: it ran, faulted or not).
+std::optional<int> replay_one(const ReplayContext& ctx, const Job& job, Prepared& prepared, bool& mismatch,
+                              bool& faulted) {
+  Pipeline* const p = prepared.pipeline.get();
+  ConfigResult& cr = prepared.cr;
+  Tracked* const tracked = &prepared.tracked;
   EventLog events;
   LogDrain drain(events);
   SimulatedClock clock;
@@ -425,12 +454,20 @@ int replay(const Args& args) {
   PluginRegistry registry;  // declared before every pipeline: libraries outlive the blocks
   const auto recorded_plugins = recorded_plugin_files(*source);
   const ReplayContext ctx{a, *source, registry, recorded_plugins};
+  // Every configuration is loaded and checked before the first is replayed: a mistake in the
+  // last --config stops the command before it has spent time or written files.
+  std::vector<Prepared> prepared;
+  for (const auto& job : *jobs) {
+    auto one = prepare_one(ctx, job);
+    if (!one) return kExitConfig;
+    prepared.push_back(std::move(*one));
+  }
   bool mismatch = false, faulted = false;
   std::vector<ConfigResult> results;
-  for (const auto& job : *jobs) {
-    ConfigResult cr;
-    if (const auto rc = replay_one(ctx, job, cr, mismatch, faulted)) return *rc;
-    results.push_back(std::move(cr));
+  for (std::size_t i = 0; i < jobs->size(); ++i) {
+    if (const auto rc = replay_one(ctx, (*jobs)[i], prepared[i], mismatch, faulted)) return *rc;
+    results.push_back(std::move(prepared[i].cr));
+    prepared[i].pipeline.reset();  // its blocks and memory, before the next one runs
   }
 
   const ReplayReport report = replay_report(a.recording, source->text("pipeline"), source->rows,

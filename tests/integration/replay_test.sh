@@ -133,5 +133,20 @@ rc=$?
 cat badcfg.txt
 [ $rc -eq 2 ] || fail "config error exited $rc, expected 2"
 grep -q "badcfg.yaml replaying rec.h5:$line:[0-9]*: blocks.glsdc.iterations" badcfg.txt || fail "error not located at line $line"
+# ... and stops the command before anything is replayed, even after a good configuration.
+rm -f rec.replay.h5
+"$LODE" replay rec.h5 --config "$SRC/config/replay/kawato_planar_cv.yaml" --config badcfg.yaml --quiet > badlast.txt 2>&1
+rc=$?
+[ $rc -eq 2 ] || fail "a bad last --config exited $rc, expected 2"
+[ ! -e rec.replay.h5 ] || fail "a replay ran before the bad last --config was refused"
+
+# A configuration at another rate would step the recorded samples with another period: refused.
+sed 's/^rate_hz: 800$/rate_hz: 1600/' "$SRC/config/replay/kawato_planar_cv.yaml" > rate1600.yaml
+grep -q "^rate_hz: 1600$" rate1600.yaml || fail "the test could not change the rate"
+"$LODE" replay rec.h5 --config rate1600.yaml --quiet > rate.txt 2>&1
+rc=$?
+cat rate.txt
+[ $rc -eq 2 ] || fail "another rate exited $rc, expected 2"
+grep -q "rate1600.yaml: rate_hz 1600 differs from the recording's 800 Hz" rate.txt || fail "another rate not explained"
 
 echo "PASS"
