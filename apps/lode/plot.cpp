@@ -149,9 +149,15 @@ int write_plot_report(const std::vector<std::string>& recordings, const fs::path
       return kExitConfig;
     }
   }
+  plot::ReportInput input;
+  for (std::size_t i = 1; i < loaded.size(); ++i) {
+    if (Status s = plot::check_replay_of(loaded.front(), loaded[i], input.notes); !s) {
+      std::fprintf(stderr, "lode: plot: %s\n", s.message().c_str());
+      return kExitConfig;
+    }
+  }
   std::vector<const plot::LoadedRecording*> files;
   std::vector<plot::SeriesRoles> roles;
-  plot::ReportInput input;
   for (const auto& l : loaded) {
     files.push_back(&l);
     roles.push_back(plot::find_roles(l));

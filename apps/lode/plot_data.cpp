@@ -1,6 +1,7 @@
 #include "plot_data.hpp"
 
 #include <algorithm>
+#include <cstring>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -68,6 +69,31 @@ Expected<LoadedRecording> open_recording(const std::string& path, PluginRegistry
   for (const auto& s : mon.record) wanted.insert(s.name());
   loaded.plotted = {"plot", [wanted](const std::string& name, const std::string&) { return wanted.count(name) > 0; }};
   return loaded;
+}
+
+Status check_replay_of(const LoadedRecording& recording, const LoadedRecording& replay, std::vector<std::string>& notes) {
+  std::size_t compared = 0;
+  for (const auto& theirs : replay.recording.series) {
+    if (theirs.info.kind != "raw") continue;
+    const record::SeriesData* ours = recording.series(theirs.info.name);
+    if (!ours || ours->width() != theirs.width()) continue;
+    ++compared;
+    const std::size_t rows = std::min(ours->rows(), theirs.rows());
+    const std::size_t width = ours->width();
+    for (std::size_t k = 0; k < rows; ++k) {
+      const bool same = ours->cycle[k] == theirs.cycle[k] &&
+                        std::memcmp(&ours->values[k * width], &theirs.values[k * width], width * sizeof(double)) == 0;
+      if (!same)
+        return Status::error(replay.path + " is not a replay of " + recording.path + ": its " + theirs.info.name +
+                             " differs from the recording's at row " + std::to_string(k) + " (cycle " +
+                             std::to_string(theirs.cycle[k]) +
+                             "); further files must be replays of the first (lode replay " + recording.path + ")");
+    }
+  }
+  if (compared == 0)
+    notes.push_back(replay.path + ": no raw series in common with " + recording.path +
+                    ", so it could not be checked to be a replay of it");
+  return Status::ok();
 }
 
 Expected<std::uint64_t> plotted_bytes(const LoadedRecording& loaded) {

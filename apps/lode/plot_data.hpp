@@ -42,6 +42,12 @@ struct LoadedRecording {
 /// No series is read yet: read_plotted() does.
 Expected<LoadedRecording> open_recording(const std::string& path, PluginRegistry& registry);
 
+/// Whether `replay` (read) replays `recording` (read): a replay's boards play back the
+/// recording's raw series bit for bit, so every raw series both hold must agree on the rows
+/// both have (a replay that faulted early has fewer). An error names the first difference;
+/// a replay with no raw series in common is let through with a note.
+Status check_replay_of(const LoadedRecording& recording, const LoadedRecording& replay, std::vector<std::string>& notes);
+
 /// What read_plotted() will hold of `loaded`'s recording (record::read_cost).
 Expected<std::uint64_t> plotted_bytes(const LoadedRecording& loaded);
 

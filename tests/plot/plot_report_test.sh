@@ -36,6 +36,17 @@ echo "lode plot took $seconds s on the 3 s demo recording (2400 cycles) and its 
 # The goal is under 2 s; ten times that is a hang or a regression, not a slow machine.
 awk -v s="$seconds" 'BEGIN { exit !(s < 20) }' && ok "lode plot in $seconds s" || bad "lode plot took $seconds s"
 
+# Further files must be replays of the first: the replay beside another run's recording (its
+# sensor noise from another seed) is refused, naming the first difference.
+sed 's/^    seed: 1$/    seed: 2/' "$SRC/config/kawato_planar.yaml" >"$TMP/other_seed.yaml"
+"$LODE" run "$TMP/other_seed.yaml" --duration 3 --record "$TMP/other.h5" --quiet --no-telemetry \
+  --no-local-control >"$TMP/other.out" 2>&1
+check_rc "record another run (seed 2)" 0 $? "$TMP/other.out"
+"$LODE" plot "$TMP/other.h5" "$TMP/replay-kawato_planar_cv.h5" -o "$TMP/mixed.html" >"$TMP/mixed.out" 2>&1
+check_rc "lode plot of a recording with another recording's replay is refused" 2 $? "$TMP/mixed.out"
+contains "and says which file and where" "$TMP/mixed.out" \
+  "replay-kawato_planar_cv.h5 is not a replay of .*other.h5: its stage\.[a-z_]+ differs from the recording's at row [0-9]+"
+
 html=$TMP/report.html
 for section in summary signals errors steps psd timing events config; do
   contains "section $section" "$html" "<section id=\"$section\">"
