@@ -322,6 +322,10 @@
     });
   }
 
+  // Tick labels of a log axis: uPlot's default rounds 1e-15 to "0"; powers of ten far from 1
+  // read best as 1e-15.
+  const logTicks = (u, splits) => splits.map((v) => (v == null ? '' : (v >= 1e-3 && v < 1e5 ? String(+v.toPrecision(3)) : v.toExponential(0))));
+
   function spectrumPlots() {
     if (!report.psd.length) { body('psd').appendChild(element('p', { class: 'empty' }, 'hold window too short for a spectrum')); return; }
     report.psd.forEach((axis, i) => {
@@ -336,7 +340,7 @@
         series: [{ label: 'f [Hz]' }, ...axis.traces.map((t, k) => ({
           label: `${t.label} (${t.segments} segments)`, stroke: t.label.endsWith('.truth') || k === 0 ? '#2ca02c' : COLORS[k % COLORS.length], width: 1 }))],
         scales: { x: { time: false, distr: 3 }, y: { distr: 3 } },
-        axes: [{ label: 'frequency [Hz]' }, { label: `${axis.axis} [${unit}²/Hz]`, size: 80 }],
+        axes: [{ label: 'frequency [Hz]', values: logTicks }, { label: `${axis.axis} [${unit}²/Hz]`, size: 80, values: logTicks }],
       }, data, box);
     });
   }
@@ -349,14 +353,31 @@
         (title.startsWith('wake') ? ' (the simulated clock does not wake up)' : '')));
       return;
     }
-    const edges = histogram.upper_edge_ns.map((ns) => ns / 1e3);
+    // Only the bins that counted something are recorded. Each is drawn over its own width (the
+    // recorder's histogram has 32 bins per octave: width 1 ns up to 64 ns, then 1/32 of the
+    // octave), with a break before it when the bin below it counted nothing, so that a rare
+    // outlier is a short step far out, not a line joining it to the bulk.
+    const widthNs = (e) => (e <= 64 ? 1 : 2 ** (Math.floor(Math.log2(e - 1)) - 5));
+    const edges = [], counts = [];
+    let previous = null;
+    histogram.upper_edge_ns.forEach((e, i) => {
+      const lower = e - widthNs(e);
+      if (previous === null || lower > previous) { edges.push(lower / 1e3); counts.push(null); }
+      edges.push(e / 1e3);
+      counts.push(histogram.count_per_bin[i]);
+      previous = e;
+    });
     new uPlot({
       width: 380, height: 200, title,
       series: [{ label: 'us' }, { label: 'cycles', stroke: '#1f77b4', fill: 'rgba(31,119,180,0.3)',
-        paths: uPlot.paths.stepped({ align: 1 }) }],
-      scales: { x: { time: false, distr: 3 }, y: { distr: 3 } },
-      axes: [{ label: 'time [us]' }, { label: 'cycles' }],
-    }, [edges, histogram.count_per_bin], holder);
+        paths: uPlot.paths.stepped({ align: 1 }),
+        // A dot on each bin with empty bins on both sides: a lone outlier is one bin wide.
+        points: { show: true, size: 5, fill: '#1f77b4',
+          filter: () => counts.flatMap((c, k) => (c !== null && counts[k - 1] === null && (k + 1 >= counts.length || counts[k + 1] === null) ? [k] : [])) } }],
+      // From 0.5, so that a bin of one cycle (often the maximum) stands above the axis.
+      scales: { x: { time: false, distr: 3 }, y: { distr: 3, range: (u, min, max) => [0.5, Math.max(2, max) * 1.5] } },
+      axes: [{ label: 'time [us]', values: logTicks }, { label: 'cycles', values: logTicks }],
+    }, [edges, counts], holder);
   }
 
   function timingPlots() {
