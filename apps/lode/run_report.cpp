@@ -83,7 +83,9 @@ void print_run_summary(const Json& summary, const RunFacts& f) {
                  static_cast<unsigned long long>(st.cycles.load()), f.result.wall_s,
                  tj.find("speed_vs_realtime")->as_number());
   }
-  std::fprintf(out, "  step cost per block (p50 / p99 / max, us):");
+  const std::uint64_t timed = f.pipeline.ops().empty() ? 0 : f.pipeline.ops().front().exec_time->count();
+  std::fprintf(out, "  step cost per block (p50 / p99 / max, us; %llu of the cycles timed%s):",
+               static_cast<unsigned long long>(timed), f.simulated ? ", one in 64 on the simulated clock" : "");
   for (const auto& op : f.pipeline.ops())
     std::fprintf(out, "  %s %.2f/%.2f/%.1f", op.label.c_str(), static_cast<double>(op.exec_time->percentile(0.5)) / 1e3,
                  static_cast<double>(op.exec_time->percentile(0.99)) / 1e3,

@@ -463,6 +463,10 @@
         .filter(([, h]) => h && h.count)
         .map(([name, h]) => [name, h.count, fmt(h.summary_us.p50_us), fmt(h.summary_us.p99_us), fmt(h.summary_us.p999_us), fmt(h.summary_us.max_us)]);
       root.appendChild(table(['what', 'count', 'p50 [us]', 'p99 [us]', 'p99.9 [us]', 'max [us]'], rows));
+      const timed = Object.values(t.block_exec_time).map((h) => (h ? h.count : 0));
+      if (timed.length && Math.max(...timed) < t.executed)
+        root.appendChild(element('p', { class: 'marks' }, `The blocks were timed in ${Math.max(...timed)} of the ` +
+          `${t.executed} cycles run (a simulated run times one cycle in 64): their percentiles come from those.`));
     }
   }
 
