@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <functional>
 #include <cstdio>
 #include <sstream>
 #include <thread>
@@ -31,8 +32,11 @@ dds::ParticipantOptions participant_options(const Args& args, const std::string&
 }
 
 /// The pipeline a command goes to: --pipeline, "pipeline/..." in the target, or the only
-/// one publishing.
-std::optional<std::string> target_pipeline(const Args& args, dds::Client& client, std::string& target) {
+/// one publishing. While none has been heard of, `came_up_locally` is asked every 100 ms: when
+/// it says a pipeline is now reachable on this host, the search ends there (nullopt, nothing
+/// printed).
+std::optional<std::string> target_pipeline(const Args& args, dds::Client& client, std::string& target,
+                                           const std::function<bool()>& came_up_locally) {
   if (args.has("--pipeline")) return args.option("--pipeline");
   const auto slash = target.find('/');
   if (slash != std::string::npos) {
@@ -46,7 +50,13 @@ std::optional<std::string> target_pipeline(const Args& args, dds::Client& client
   // chances to be heard) and the set has held still for 2 s (a loaded host can take over a
   // second to process an announcement). A command never goes to the one that answered first.
   const auto listening_since = Clock::now();
-  auto pipelines = client.pipelines(wait_option(args, 3.0));
+  const auto deadline = listening_since + wait_option(args, 3.0);
+  auto pipelines = client.pipelines(milliseconds(0));
+  while (pipelines.empty() && Clock::now() < deadline) {
+    if (came_up_locally && came_up_locally()) return std::nullopt;
+    std::this_thread::sleep_for(milliseconds(100));
+    pipelines = client.pipelines(milliseconds(0));
+  }
   for (auto settled = Clock::now();
        !pipelines.empty() && (Clock::now() - settled < std::chrono::seconds(2) ||
                               Clock::now() - listening_since < std::chrono::milliseconds(2500));) {
@@ -58,6 +68,7 @@ std::optional<std::string> target_pipeline(const Args& args, dds::Client& client
     }
   }
   if (pipelines.size() == 1) return pipelines[0];
+  if (pipelines.empty() && came_up_locally && came_up_locally()) return std::nullopt;  // one last look
   if (pipelines.empty())
     std::fprintf(stderr, "lode: no pipeline is publishing on this domain (give --pipeline NAME, check --domain/--transport)\n");
   else {
@@ -227,15 +238,20 @@ int send_command(const Args& args, const std::string& role, std::string target,
   if (socket) return send_local(role, *socket, *request, args);
   auto client = make_client(args, role);
   if (!client) return kExitConfig;
+  // Until one is heard of on DDS, a pipeline that comes up on this host meanwhile (one just
+  // started, without telemetry) is commanded through its socket.
+  std::optional<std::string> late;
+  const auto came_up_locally = [&] {
+    if (force_dds) return false;
+    late = find_local_socket(pipeline, false, milliseconds(0), refusal);
+    return late.has_value() || refusal != 0;
+  };
   std::optional<std::string> target_name = pipeline;
-  if (!target_name) target_name = target_pipeline(args, *client, target);
-  if (!target_name && !force_dds) {
-    // None on DDS: a pipeline that came up on this host meanwhile is commanded locally.
-    if (auto late = find_local_socket(pipeline, false, milliseconds(0), refusal)) {
-      client.reset();
-      return send_local(role, *late, *request, args);
-    }
-    if (refusal != 0) return refusal;
+  if (!target_name) target_name = target_pipeline(args, *client, target, came_up_locally);
+  if (refusal != 0) return refusal;
+  if (late) {
+    client.reset();
+    return send_local(role, *late, *request, args);
   }
   // None live, or several and none named: a command must never go to a guessed pipeline.
   if (!target_name) return kExitConfig;

@@ -201,6 +201,23 @@ kill -INT "$RUNNER_PID"; wait "$RUNNER_PID"; RUNNER_PID=
   wait "$RUNNER_PID"; RUNNER_PID=
   "$LODE" set --local --wait 0.5 observer.d >"$TMP/none.out" 2>&1
   check "--local --wait: none came up within the wait" 1 $?
+  # Without --local, --wait looks on DDS and on this host together: a pipeline still starting
+  # without telemetry is commanded through its socket as soon as it is up (this waited the whole
+  # --wait for DDS, and said no pipeline was publishing, before it looked at the socket again).
+  "$LODE" run "$CONFIG" --clock real --duration 30 --no-telemetry --quiet >"$TMP/start.log" 2>&1 &
+  RUNNER_PID=$!
+  started=$EPOCHREALTIME
+  "$LODE" set --list --wait 20 >"$TMP/start.out" 2>&1
+  check "--wait: a command given as the pipeline starts" 0 $?
+  took=$(awk -v a="$started" -v b="$EPOCHREALTIME" 'BEGIN { printf "%.1f", b - a }')
+  [ -n "$took" ] && awk -v t="$took" 'BEGIN { exit !(t < 10) }' && echo "ok: --wait: answered after $took s, not after the whole 20 s wait" \
+    || { echo "FAIL: --wait: answered after $took s (the whole wait: the socket was not looked at)"; fail=1; }
+  if grep -q "no pipeline is publishing" "$TMP/start.out"; then
+    echo "FAIL: --wait: says no pipeline is publishing, then answers:"; cat "$TMP/start.out"; fail=1
+  else
+    echo "ok: --wait: no false error"
+  fi
+  kill -INT "$RUNNER_PID"; wait "$RUNNER_PID"; RUNNER_PID=
   # --no-local-control: no socket at all.
   "$LODE" run "$CONFIG" --clock real --duration 1.5 --no-telemetry --no-local-control --quiet >"$TMP/nolocal.log" 2>&1 &
   RUNNER_PID=$!
