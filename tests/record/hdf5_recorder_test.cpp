@@ -200,6 +200,26 @@ TEST(Hdf5RecorderTest, RoundTripIsBitIdentical) {
 // A replay knows its length: the datasets are made at that size and filled in bulk. What the
 // file holds must not depend on it: rows appended in bulk read back bit for bit, a run that
 // ends early leaves no fill rows behind, and one that runs longer extends the datasets.
+// What is most often given where a recording goes is said in the user's words, not HDF5's
+// ("unable to open file: name = ..., errno = 2"; "file signature not found").
+TEST(Hdf5RecorderTest, WhatIsNotARecordingIsSaidPlainly) {
+  const auto error_of = [](const std::string& path) {
+    auto r = lode::record::read_recording(path);
+    return r ? std::string("read") : r.error();
+  };
+  const std::string missing = scratch_path("missing.h5");
+  EXPECT_EQ(error_of(missing), "recording '" + missing + "': no such file");
+  const std::string folder = scratch_path("folder.h5");
+  std::filesystem::create_directories(folder);
+  EXPECT_EQ(error_of(folder), "recording '" + folder + "': a directory, not a recording");
+  const std::string empty = scratch_path("empty.h5");
+  std::ofstream(empty).close();
+  EXPECT_EQ(error_of(empty), "recording '" + empty + "': an empty file, not a recording");
+  const std::string yaml = scratch_path("pipeline.yaml");
+  std::ofstream(yaml) << "pipeline: x\nrate_hz: 800\n";
+  EXPECT_NE(error_of(yaml).find("recording '" + yaml + "': not an HDF5 file"), std::string::npos) << error_of(yaml);
+}
+
 TEST(Hdf5RecorderTest, KnownLengthBulkRowsReadBackExactly) {
   for (const std::uint64_t appended : {std::uint64_t{40'000}, std::uint64_t{25'001}, std::uint64_t{41'000}}) {
     const std::string path = scratch_path("known_length_" + std::to_string(appended) + ".h5");

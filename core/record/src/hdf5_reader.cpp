@@ -4,6 +4,9 @@
 
 #include <sys/stat.h>
 
+#include <cerrno>
+#include <cstring>
+#include <fstream>
 #include <mutex>
 
 #include "hdf5_common.hpp"
@@ -360,9 +363,34 @@ struct OpenRecording {
 
 Status read_whole_file(const std::string& path);
 
+/// What a user gets wrong most often, said in their words before HDF5 says it in its own
+/// ("unable to open file: file signature not found"): no such file, not a file, not readable,
+/// not HDF5 at all (a configuration given where the recording goes).
+Status check_is_hdf5_file(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0)
+    return Status::error(errno == ENOENT ? std::string("no such file") : std::string(std::strerror(errno)));
+  if (S_ISDIR(st.st_mode)) return Status::error("a directory, not a recording");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Status::error(std::string("cannot be read: ") + std::strerror(errno));
+  // The HDF5 signature, at offset 0 or after a user block (512, 1024, 2048, ... bytes).
+  static constexpr char kSignature[8] = {'\x89', 'H', 'D', 'F', '\r', '\n', '\x1a', '\n'};
+  char head[8];
+  for (std::uint64_t offset = 0; offset == 0 || offset < static_cast<std::uint64_t>(st.st_size); offset = offset ? 2 * offset : 512) {
+    in.clear();
+    in.seekg(static_cast<std::streamoff>(offset));
+    if (!in.read(head, sizeof head)) break;
+    if (std::memcmp(head, kSignature, sizeof head) == 0) return Status::ok();
+  }
+  return Status::error(st.st_size == 0 ? std::string("an empty file, not a recording")
+                                       : std::string("not an HDF5 file: a recording is what `lode run --record`, "
+                                                     "`lode record` or `lode replay` writes"));
+}
+
 Expected<OpenRecording> open_recording(const std::string& path, Recording& attributes) {
   silence_hdf5_errors();
   const std::string where = "recording '" + path + "': ";
+  if (Status usable = check_is_hdf5_file(path); !usable) return Status::error(where + usable.message());
   if (Status checked = read_first_in_child(path, read_whole_file); !checked)
     return Status::error(where + checked.message());
   OpenRecording open;
