@@ -280,6 +280,15 @@ int run_command_line(int argc, char** argv, const std::vector<Command>& commands
       if (!near.empty()) hint = " (did you mean " + near + "?)";
       break;
     }
+    // No command named, and the first word is not an option: a misspelt command (`lode runn
+    // x.yaml` said "the following arguments were not expected: x.yaml runn").
+    if (command.empty() && argc > 1 && argv[1][0] != '-' && hint.empty()) {
+      std::vector<std::string> names;
+      for (const auto& [name, sub] : tree->commands) names.push_back(name);
+      message = std::string("unknown command '") + argv[1] + "'";
+      const std::string near = nearest_in(names, argv[1]);
+      if (!near.empty()) hint = " (did you mean " + near + "?)";
+    }
     std::fprintf(stderr, "lode%s%s: %s%s\nsee: lode %s%s--help\n", command.empty() ? "" : " ", command.c_str(),
                  message.c_str(), hint.c_str(), command.c_str(), command.empty() ? "" : " ");
     return kExitConfig;

@@ -59,7 +59,8 @@ expect "rtcheck --bogus" 2 "unknown option '--bogus'" rtcheck --bogus
 expect "topics --domain 999" 2 "--domain: '999' is outside \[0, 232\]" topics --domain 999
 expect "set --transport carrier-pigeon" 2 "--transport" set x.y 1 --transport carrier-pigeon
 expect "check without CONFIG" 2 "CONFIG is required" check
-expect "an unknown command" 2 "frobnicate" frobnicate
+expect "an unknown command" 2 "^lode: unknown command 'frobnicate'$" frobnicate
+expect "a misspelt command" 2 "^lode: unknown command 'runn' \(did you mean run\?\)$" runn "$CONFIG"
 expect "--version" 0 "^lode [0-9]+\.[0-9]+\.[0-9]+, plugin ABI [0-9]+" --version
 expect "plugins NAME shows that plugin only" 0 "^filter\.biquad " plugins filter.biquad
 [ "$(grep -c '^[a-z]' "$TMP/expect.out")" = 1 ] && ok "plugins NAME: one plugin" || bad "plugins NAME listed $(grep -c '^[a-z]' "$TMP/expect.out") plugins"
