@@ -228,11 +228,20 @@ Json RunAnalysis::finish() {
       for (std::size_t i = 0; i < s.peak_coupling.size(); ++i)
         if (i != s.axis) coupling[truth[i].name] = s.peak_coupling[i];
       j["peak_coupling"] = std::move(coupling);
-      say(out_, "  step %-8s at %.3f s of %+.1f %s: rise %.1f ms, overshoot %.1f %%, settling (+-%.2f %s) %.1f ms, "
+      // A step that never reached 90 % or never settled has no such time (NaN): say so in words,
+      // as the report does.
+      const auto milliseconds = [](double seconds, const char* never) {
+        char text[32];
+        if (std::isfinite(seconds)) std::snprintf(text, sizeof text, "%.1f ms", seconds * 1e3);
+        else std::snprintf(text, sizeof text, "%s", never);
+        return std::string(text);
+      };
+      say(out_, "  step %-8s at %.3f s of %+.1f %s: rise %s, overshoot %.1f %%, settling (+-%.2f %s) %s, "
                   "steady-state error %+.3f %s\n",
-                  el.name.c_str(), s.time_s, s.amplitude * scale, unit.c_str(), s.rise_time_s * 1e3, s.overshoot_pct,
-                  s.settling_band * scale, unit.c_str(), s.settling_time_s * 1e3, s.steady_state_error * scale,
-                  unit.c_str());
+                  el.name.c_str(), s.time_s, s.amplitude * scale, unit.c_str(),
+                  milliseconds(s.rise_time_s, "never (did not reach 90 %)").c_str(), s.overshoot_pct,
+                  s.settling_band * scale, unit.c_str(), milliseconds(s.settling_time_s, "never").c_str(),
+                  s.steady_state_error * scale, unit.c_str());
       sj.push(std::move(j));
     }
     out["steps"] = std::move(sj);

@@ -21,6 +21,15 @@ contains "summary printed" "$TMP/run.out" "position noise std"
 contains "summary json result" "$TMP/summary.json" '"result": "completed"'
 contains "summary json steps" "$TMP/summary.json" '"rise_time_s"'
 
+# A step that never rises or settles (a platen a thousand times too heavy, 0.5 s after the step)
+# is said in words, not printed as "nan ms".
+sed "s/mass_kg: 6.20$/mass_kg: 6200/" "$SRC/config/kawato_planar.yaml" >"$TMP/heavy.yaml"
+grep -q "mass_kg: 6200$" "$TMP/heavy.yaml" || { echo "FAIL: the test could not make the platen heavy"; fail=1; }
+"$LODE" run "$TMP/heavy.yaml" --duration 1.5 --no-telemetry >"$TMP/heavy.out" 2>&1; check_rc "run a step that never rises" 0 $?
+contains "the step that never rose says so" "$TMP/heavy.out" \
+  "step x +at 1\.000 s of \+100\.0 um: rise never \(did not reach 90 %\), .*settling \(\+-2\.00 um\) never,"
+if grep -qi "nan" "$TMP/heavy.out"; then echo "FAIL: nan in the summary:"; grep -i nan "$TMP/heavy.out"; fail=1; else echo "ok: no nan in the summary"; fi
+
 # The summary of the full demo is the README's table (the default duration, seed 1, the
 # simulated clock: deterministic). kawato_planar_test checks these figures against the
 # design's model; here the CLI's own summary must carry them, to the digits printed.
