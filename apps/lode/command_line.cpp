@@ -9,6 +9,7 @@
 #include <memory>
 
 #include "lode/sdk/plugin.hpp"
+#include "lode/nearest_name.hpp"
 #include "lode/plugin_loader.hpp"
 
 namespace lode::cli {
@@ -140,21 +141,6 @@ std::unique_ptr<Tree> build_tree(Args& args, const std::vector<Command>& command
   return tree;
 }
 
-std::size_t edit_distance(const std::string& a, const std::string& b) {
-  std::vector<std::size_t> row(b.size() + 1);
-  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
-  for (std::size_t i = 1; i <= a.size(); ++i) {
-    std::size_t diagonal = row[0];
-    row[0] = i;
-    for (std::size_t j = 1; j <= b.size(); ++j) {
-      const std::size_t above = row[j];
-      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
-      diagonal = above;
-    }
-  }
-  return row[b.size()];
-}
-
 std::vector<std::string> long_names(const CLI::App* app) {
   std::vector<std::string> names;
   for (const CLI::Option* o : app->get_options()) {
@@ -167,17 +153,7 @@ std::vector<std::string> long_names(const CLI::App* app) {
 }
 
 std::string nearest_in(const std::vector<std::string>& known, const std::string& unknown) {
-  const std::string bare = unknown.substr(0, unknown.find('='));
-  std::string best;
-  std::size_t best_distance = std::max<std::size_t>(2, bare.size() / 3) + 1;
-  for (const auto& name : known) {
-    const std::size_t d = edit_distance(bare, name);
-    if (d < best_distance) {
-      best_distance = d;
-      best = name;
-    }
-  }
-  return best;
+  return nearest_name(known, unknown.substr(0, unknown.find('=')));
 }
 
 }  // namespace

@@ -105,8 +105,11 @@ const std::string& Params::path() const { return node_->path; }
 
 void Params::fail(std::string_view key, std::string message) {
   ++node_->tree->errors;
-  node_->tree->diagnostics->add(location(key), node_->path + "." + std::string(key),
-                                std::move(message));
+  detail::ParamsTree& tree = *node_->tree;
+  std::string field = node_->path + "." + std::string(key);
+  if (tree.missing_fields.count(field) > 0 || !tree.reported.emplace(field, message).second) return;
+  if (message.rfind("missing required parameter", 0) == 0) tree.missing_fields.insert(field);
+  tree.diagnostics->add(location(key), std::move(field), std::move(message));
 }
 
 void Params::fail(std::string message) {

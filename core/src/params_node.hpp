@@ -6,6 +6,7 @@
 #include <memory>
 #include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "lode/sdk/diagnostics.hpp"
@@ -18,6 +19,12 @@ struct ParamsTree {
   Diagnostics* diagnostics = nullptr;  ///< where problems go (owned by the loader)
   std::string file;
   std::size_t errors = 0;
+  /// Required fields that are missing: what a plugin says of them afterwards is a consequence
+  /// (a missing `q` is then "expected 3 numbers, got 0", then "must be > 0" for each axis) and
+  /// is not reported.
+  std::set<std::string> missing_fields;
+  /// Every (field, message) reported, so that the same problem is said once.
+  std::set<std::pair<std::string, std::string>> reported;
   /// Every map node handed out, kept alive until report_unread_keys() so that maps a plugin
   /// read through a temporary (items(), child()) are still checked. report_unread_keys()
   /// clears it, which also breaks the node -> tree -> node reference cycle.

@@ -207,11 +207,23 @@ void Pipeline::Impl::check_documented(const LoadedPlugin& plugin, const Params& 
 
 void Pipeline::Impl::configure_block(BlockEntry& e) {
   if (!e.plugin.descriptor) return;
+  // A block reading from one whose plugin is missing or whose configuration failed would refuse
+  // its own for want of that input's elements ("must be connected to a configured block's
+  // output"): the first problem is reported, not its echoes.
+  for (const auto& w : e.wiring) {
+    const BlockEntry* src = find_block(w.src_block);
+    if (src && (src->failed || (!src->configured && src->plugin.descriptor == nullptr))) {
+      e.failed = true;
+      e.configured = true;
+      return;
+    }
+  }
   const std::string path = "blocks." + e.name;
   std::unique_ptr<Component> made(e.plugin.descriptor->create());
   auto* block = dynamic_cast<Block*>(made.get());
   if (!block) {
     error(e.where, path, std::string("plugin ") + e.plugin.descriptor->name + " did not create a Block");
+    e.failed = true;
     return;
   }
   made.release();
@@ -223,6 +235,7 @@ void Pipeline::Impl::configure_block(BlockEntry& e) {
                              (e.board ? " but implements lode::Board (only io plugins do)"
                                       : " but does not implement lode::Board (write phase and safe state)"));
     e.adopt(nullptr);
+    e.failed = true;
     return;
   }
   Params params = detail::make_params(e.node, path, file, diag, kPipelineBlockKeys);
@@ -240,8 +253,10 @@ void Pipeline::Impl::configure_block(BlockEntry& e) {
   if (threw) {  // keys it never got to read are not the user's mistake: report the bug only
     error(e.where, path, st.message());
     e.configured = true;
+    e.failed = true;
     return;
   }
+  e.failed = !st;
   if (st) check_unconditional_ports(e, params);
   detail::report_unread_keys(params);
   check_documented(e.plugin, params, path);
@@ -271,7 +286,9 @@ void Pipeline::Impl::resolve_inputs_of(BlockEntry& entry) {
         continue;
       }
       const BlockEntry* src = find_block(w.src_block);
-      if (!src || !src->configured) continue;  // reported already (a feed has no block but is configured)
+      // Reported already (a feed has no block but is configured; a failed block's outputs are
+      // what it did not get to declare).
+      if (!src || !src->configured || src->failed) continue;
       const DeclaredOutput* out = src->output(w.src_port);
       if (!out) {
         std::string names;

@@ -88,7 +88,10 @@ std::unique_ptr<Pipeline> Pipeline::load_text(const std::string& yaml, const std
   }
   if (!im.parse_top(root)) return nullptr;
   const auto order = im.order_blocks();
-  for (auto* b : order) im.configure_block(*b);
+  // Every block derives its discrete-time constants from the rate: without a valid one, what
+  // they would refuse is noise (a controller's "matched gain is not finite" at 0 Hz).
+  if (im.rate_hz > 0)
+    for (auto* b : order) im.configure_block(*b);
   im.resolve_inputs();
   im.check_shadows(order);
   if (!diagnostics.empty()) return nullptr;
@@ -137,7 +140,8 @@ bool Pipeline::Impl::parse_top(const YAML::Node& root) {
     }
     if (!ok || !std::isfinite(r) || r <= 0 || r > 100000)
       error(detail::location_of(rate, file), "rate_hz",
-            "rate_hz must be a number in (0, 100000], got '" + (rate.IsScalar() ? rate.Scalar() : "?") + "'");
+            "rate_hz must be a number in (0, 100000], got '" + (rate.IsScalar() ? rate.Scalar() : "?") +
+                "' (the blocks are checked once it is valid: their constants depend on it)");
     else
       rate_hz = r;
   }

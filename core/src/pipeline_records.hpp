@@ -80,6 +80,9 @@ struct BlockEntry {
   std::vector<DeclaredOutput> outputs;
   std::vector<DeclaredInput> inputs;
   bool configured = false;
+  /// Its configuration was refused (or configure() threw), or not tried because a block it
+  /// reads from failed: what it or its readers would say next is a consequence, not reported.
+  bool failed = false;
 
   // Shadows and hot swap -------------------------------------------------------------
   std::string shadow_of;                 ///< `shadow_of:` (this role is a shadow of that block)

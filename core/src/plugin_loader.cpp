@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <set>
 
+#include "lode/nearest_name.hpp"
 #include "plugin_load_guard.hpp"
 
 namespace fs = std::filesystem;
@@ -160,8 +161,20 @@ Expected<LoadedPlugin> PluginRegistry::find(const std::string& name) {
     return loaded;
   }
   std::string searched;
-  for (const auto& dir : search_path_) searched += (searched.empty() ? "" : ":") + dir;
-  return Status::error("no plugin named '" + name + "' (looked for " + file + " in " + searched + ")");
+  std::vector<std::string> installed;  // the names of the plugin files there, for a typo's hint
+  for (const auto& dir : search_path_) {
+    searched += (searched.empty() ? "" : ":") + dir;
+    std::error_code ec;
+    for (const auto& entry : fs::directory_iterator(dir, ec)) {
+      const std::string f = entry.path().filename().string();
+      const std::size_t prefix = std::strlen(kFilePrefix), suffix = std::strlen(kFileSuffix);
+      if (f.size() > prefix + suffix && f.rfind(kFilePrefix, 0) == 0 && f.compare(f.size() - suffix, suffix, kFileSuffix) == 0)
+        installed.push_back(f.substr(prefix, f.size() - prefix - suffix));
+    }
+  }
+  const std::string near = nearest_name(installed, name);
+  return Status::error("no plugin named '" + name + "'" + (near.empty() ? "" : " (did you mean '" + near + "'?)") +
+                       " (looked for " + file + " in " + searched + ")");
 }
 
 PluginRegistry::Listing PluginRegistry::discover_all() {

@@ -149,6 +149,29 @@ struct ParamsFixture : ::testing::Test {
   YAML::Node node;
 };
 
+// A field's own problem once: what a plugin checks of a missing required field afterwards
+// (its defaulted value's size and sign) is a consequence, and the same message twice is one.
+// Different problems of one field (two bad elements) are all said.
+TEST_F(ParamsFixture, AMissingFieldIsOneProblemNotItsConsequences) {
+  auto p = load("r: [-1, 2, -3]\n");
+  const auto q = p.numbers("q");
+  p.check(q.size() == 3, "q", "expected 3 numbers, got " + std::to_string(q.size()));
+  for (int axis = 0; axis < 3; ++axis) p.check(false, "q", "must be > 0, got 0");
+  const auto r = p.numbers("r");
+  for (std::size_t i = 0; i < r.size(); ++i)
+    p.check(r[i] > 0, "r", "element " + std::to_string(i) + " must be > 0, got " + std::to_string(r[i]));
+  for (int twice = 0; twice < 2; ++twice) p.check(false, "r", "the same problem");
+  EXPECT_FALSE(p.ok());
+  const auto text = diag.format();
+  EXPECT_NE(text.find("blocks.b.q: missing required parameter 'q'"), std::string::npos) << text;
+  EXPECT_EQ(text.find("expected 3 numbers"), std::string::npos) << text;
+  EXPECT_EQ(text.find("must be > 0, got 0"), std::string::npos) << text;
+  EXPECT_NE(text.find("element 0 must be > 0"), std::string::npos) << text;
+  EXPECT_NE(text.find("element 2 must be > 0"), std::string::npos) << text;
+  EXPECT_EQ(text.find("the same problem"), text.rfind("the same problem")) << text;
+  EXPECT_EQ(diag.size(), 4u) << text;
+}
+
 TEST_F(ParamsFixture, ReportsLocatedErrorsAndUnknownKeys) {
   auto p = load("gain: 2.5\nmode: fast\nlimit: abc\ngian_typo: 1\n");
   EXPECT_DOUBLE_EQ(p.number("gain"), 2.5);

@@ -207,6 +207,35 @@ TEST_P(ConfigErrors, LocatedMessageAndRefusal) {
 INSTANTIATE_TEST_SUITE_P(Table, ConfigErrors, ::testing::ValuesIn(cases()),
                          [](const auto& case_info) { return std::string(case_info.param.name); });
 
+// One mistake is one problem: what the blocks reading from a block that failed, or every block
+// at an invalid rate, would refuse next is its echo, not another mistake to fix.
+TEST(ConfigErrorsEchoes, OneMistakeIsOneProblem) {
+  const struct {
+    const char* name;
+    std::string yaml;
+    const char* message;
+  } mistakes[] = {
+      {"a misspelt plugin that another block reads from",
+       replace(kValid, "plugin: source.step", "plugin: source.stepp"),
+       "no plugin named 'source.stepp' (did you mean 'source.step'?)"},
+      {"a misspelt controller that the board reads from",
+       replace(kValid, "plugin: controller.discrete_tf", "plugin: controller.discrete_tff"),
+       "no plugin named 'controller.discrete_tff' (did you mean 'controller.discrete_tf'?)"},
+      {"a controller whose configuration is refused", replace(kValid, "    output_units: [N, N, N*m]\n", ""),
+       "blocks.ctrl.output_units: one SI unit per axis is required"},
+      {"a rate with its unit", replace(kValid, "rate_hz: 800", "rate_hz: 800 Hz"),
+       "rate_hz must be a number in (0, 100000], got '800 Hz' (the blocks are checked once it is valid"},
+  };
+  for (const auto& m : mistakes) {
+    lode::PluginRegistry registry;
+    lode::Diagnostics diag;
+    EXPECT_FALSE(lode::Pipeline::load_text(m.yaml, "bad.yaml", registry, diag)) << m.name;
+    const std::string text = diag.format();
+    EXPECT_NE(text.find(m.message), std::string::npos) << m.name << ":\n" << text;
+    EXPECT_EQ(diag.size(), 1u) << m.name << ":\n" << text;
+  }
+}
+
 TEST(ConfigErrorsCli, LodeCheckExitsTwoWithLocation) {
   const std::string path = lode::testing::scratch_path("bad_config.yaml");
   {

@@ -13,7 +13,10 @@ contains "describe has derived controller" "$TMP/describe.json" '"derived"'
 
 sed 's/plugin: estimator.glsdc/plugin: estimator.glsdx/' "$SRC/config/kawato_planar.yaml" >"$TMP/bad.yaml"
 "$LODE" run "$TMP/bad.yaml" >"$TMP/bad.out" 2>&1; check_rc "run invalid config" 2 $?
-contains "invalid config names file:line:column" "$TMP/bad.out" "bad.yaml:[0-9]+:[0-9]+: blocks.glsdc.plugin: no plugin named 'estimator.glsdx'"
+contains "invalid config names file:line:column" "$TMP/bad.out" "bad.yaml:[0-9]+:[0-9]+: blocks.glsdc.plugin: no plugin named 'estimator.glsdx' \(did you mean 'estimator.glsdc'\?\)"
+# ... and only that: the Kalman filter reading glsdc.pose, and the controller reading the
+# filter, would refuse their configuration for want of it; those echoes are not reported.
+contains "one mistake, one problem" "$TMP/bad.out" "^lode: 1 problem in .*bad.yaml; nothing was started$"
 
 "$LODE" run "$SRC/config/kawato_planar.yaml" --duration 1.5 --summary-json "$TMP/summary.json" >"$TMP/run.out" 2>&1
 check_rc "run sim" 0 $?
