@@ -358,6 +358,7 @@ std::optional<int> replay_one(const ReplayContext& ctx, const Job& job, Prepared
   options.local_control = false;  // a replay is not commanded
   options.simulated = true;
   options.record_path = job.output;
+  options.record_source = "lode replay";
   options.record_rows = ctx.source.rows;  // the file is laid out for the whole replay at once
   options.digest = ctx.source.digest;
   auto services = RunServices::start(*p, sched, events, options);

@@ -269,9 +269,12 @@ int run(const Args& args) {
   };
   // A bug that kills the process (SIGSEGV, an exception out of step()) still drives the outputs safe.
   CrashGuard crash_guard(p);
-  const std::string start_text = "pipeline '" + p.name() + "' at " + std::to_string(p.rate_hz()) + " Hz, " +
-                                 clock_name + " clock, " +
-                                 (until_stopped ? "until stopped" : std::to_string(duration) + " s");
+  char rate_and_length[96];
+  if (until_stopped)
+    std::snprintf(rate_and_length, sizeof rate_and_length, "%g Hz, %s clock, until stopped", p.rate_hz(), clock_name.c_str());
+  else
+    std::snprintf(rate_and_length, sizeof rate_and_length, "%g Hz, %s clock, %g s", p.rate_hz(), clock_name.c_str(), duration);
+  const std::string start_text = "pipeline '" + p.name() + "' at " + rate_and_length;
   const auto outcome = execute_run(
       p, sched, events, **services, cycles, start_text, on_idle,
       [&] {

@@ -103,7 +103,7 @@ Json RunRecorder::finished() const {
 
 Status RunRecorder::open_locked(const std::string& path, std::uint64_t expected_cycles) {
   if (recorder_) return Status::error("already recording to " + path_ + " (record_stop first)");
-  auto r = record::Recorder::create(path, "lode run");
+  auto r = record::Recorder::create(path, source_);
   if (!r) return Status::error(r.error());
   recorder_ = std::move(*r);
   if (expected_cycles > 0) recorder_->expect_rows(expected_cycles);

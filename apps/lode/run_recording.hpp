@@ -40,6 +40,8 @@ class RunRecorder {
   /// Opens FILE and starts recording at the next cycle; `expected_cycles` > 0 when the run's
   /// length is known (a replay), so the file is laid out for it (Recorder::expect_rows).
   Status open(const std::string& path, std::uint64_t expected_cycles = 0);
+  /// What the files opened from now on say wrote them (their `source`): "lode run", "lode replay".
+  void set_source(std::string source) { source_ = std::move(source); }
   void set_running(bool running) { running_.store(running); }
   /// On the simulated clock the cycles and on_idle() share one thread: from here until
   /// stop_writer() a thread of its own drains the tap and writes the file while the cycles
@@ -103,6 +105,7 @@ class RunRecorder {
   mutable std::mutex mutex_;
   std::unique_ptr<record::Recorder> recorder_;
   std::string path_;
+  std::string source_ = "lode run";
   std::vector<int> series_;  // per tapped signal
   std::vector<double> rows_;
   std::vector<std::uint64_t> row_cycles_;  // of the rows drained, for Recorder::append_rows

@@ -96,6 +96,7 @@ Expected<std::unique_ptr<RunServices>> RunServices::start(Pipeline& pipeline, Sc
   scheduler.add_hook(&im.recorder->hook());
   im.control->set_record_handler([&im](const ControlRequest& r) { return im.recorder->handle(r); });
   if (!options.record_path.empty()) {
+    im.recorder->set_source(options.record_source);
     if (auto st = im.recorder->open(options.record_path, options.record_rows); !st) return st;
   }
   if (options.local_control) {

@@ -32,6 +32,7 @@ struct RunServiceOptions {
   bool telemetry = true;             ///< start the DDS bridge when the YAML has `telemetry:`
   std::optional<int> domain;         ///< --domain overrides telemetry.domain
   std::string record_path;           ///< --record FILE: every output at full rate
+  std::string record_source = "lode run";  ///< what the file says wrote it
   std::uint64_t record_rows = 0;      ///< cycles the run will have, when known (a replay): see Recorder::expect_rows
   int wait_subscribers = 0;          ///< --wait-subscribers N: start cycling once N readers matched
   double wait_s = 10.0;
