@@ -92,8 +92,17 @@ CLI::Option* Declare::list(const std::string& name, const std::string& value_nam
 
 CLI::Option* Declare::positional(const std::string& name, const std::string& description, int min, int max) {
   auto* o = app_->add_option_function<std::vector<std::string>>(
-      name, [&args = args_](const std::vector<std::string>& values) { args.positional = values; }, description);
-  o->expected(min, max);
+      name,
+      [&args = args_, name, max](const std::vector<std::string>& values) {
+        if (values.size() > static_cast<std::size_t>(max))
+          throw CLI::ValidationError(name, "at most " + std::to_string(max) + " are taken, " +
+                                               std::to_string(values.size()) + " were given");
+        args.positional = values;
+      },
+      description);
+  // More than one: unbounded for the parser, so that the usage line reads "NAME ..." (a bounded
+  // count prints as "NAME(1x)"); the callback enforces the bound.
+  o->expected(min, max > 1 ? CLI::detail::expected_max_vector_size : max);
   if (min > 0) o->required();
   return o;
 }
