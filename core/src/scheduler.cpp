@@ -156,24 +156,32 @@ RunResult Scheduler::run_simulated(std::uint64_t cycles, const std::atomic<bool>
   const std::int64_t period = pipeline_.period_ns();
   Tick tick;
   tick.dt_s = 1.0 / pipeline_.rate_hz();
-  const bool follow = !followed_cycles_.empty();
-  for (std::uint64_t k = 0; follow ? k < followed_cycles_.size() : (cycles == 0 || k < cycles); ++k) {
-    if (fault_requested_.load(std::memory_order_relaxed)) {
-      pipeline_.drive_safe();
-      break;
+  // One loop for both: every cycle, or the followed ones (a constant per instantiation, so the
+  // usual case pays nothing for the other).
+  const auto loop = [&]<bool kFollow>() {
+    const std::uint64_t runs = kFollow ? followed_cycles_.size() : cycles;
+    for (std::uint64_t k = 0; runs == 0 || k < runs; ++k) {
+      if (fault_requested_.load(std::memory_order_relaxed)) {
+        pipeline_.drive_safe();
+        break;
+      }
+      if (stop.load(std::memory_order_relaxed)) {
+        result.stopped_by_request = true;
+        break;
+      }
+      tick.cycle = kFollow ? followed_cycles_[k] : k;
+      if (kFollow && cycles != 0 && tick.cycle >= cycles) break;
+      tick.time_ns = static_cast<std::int64_t>(tick.cycle) * period;
+      clock_.sleep_until(tick.time_ns);
+      if (!cycle(tick, true, result)) break;
+      // Drain often enough that no tap can overflow: a simulated run is never lossy.
+      if ((k & 1023) == 1023 && on_idle) on_idle();
     }
-    if (stop.load(std::memory_order_relaxed)) {
-      result.stopped_by_request = true;
-      break;
-    }
-    tick.cycle = follow ? followed_cycles_[k] : k;
-    if (follow && cycles != 0 && tick.cycle >= cycles) break;
-    tick.time_ns = static_cast<std::int64_t>(tick.cycle) * period;
-    clock_.sleep_until(tick.time_ns);
-    if (!cycle(tick, true, result)) break;
-    // Drain often enough that no tap can overflow: a simulated run is never lossy.
-    if ((k & 1023) == 1023 && on_idle) on_idle();
-  }
+  };
+  if (followed_cycles_.empty())
+    loop.operator()<false>();
+  else
+    loop.operator()<true>();
   return result;
 }
 
