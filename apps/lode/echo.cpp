@@ -106,12 +106,14 @@ int echo(const Args& args) {
     auto sub = client->subscribe(m, [&](const dds::SignalMeta& meta_, const dds::Sample& s) {
       std::lock_guard lock(out_mutex);
       if (count > 0 && received >= count) return;  // enough; the rest arrives while unsubscribing
+      // The newest cycle so far: a sample from before it (out of order, or from a namesake
+      // pipeline on another cycle count) neither moves it back nor makes the next one a gap.
       if (last_cycle) {
         if (s.cycle <= *last_cycle) ++out_of_order;
         else if (s.cycle != *last_cycle + meta_.decimation) gaps += (s.cycle - *last_cycle) / meta_.decimation - 1;
       }
       if (!first_cycle) first_cycle = s.cycle;
-      last_cycle = s.cycle;
+      if (!last_cycle || s.cycle > *last_cycle) last_cycle = s.cycle;
       ++received;
       if (latency) latencies_us.push_back(static_cast<double>(s.received_ns - s.captured_ns) * 1e-3);
       if (quiet) {

@@ -276,11 +276,11 @@ ControlReply RunRecorder::handle(const ControlRequest& r) {
     events_.post(stats_.last_time_ns.load(), stats_.cycles.load(), "record", reply.message);
   } else {
     const std::string path = path_;
-    const auto cycles = recorded_cycles_;
     if (auto st = close_locked(); !st) {
       reply.message = "record_stop: " + st.message();
       return reply;
     }
+    const auto cycles = recorded_cycles_;  // after close_locked(), which writes what was still in the tap
     reply.ok = true;
     reply.message = "closed " + path + " (" + std::to_string(cycles) + " cycles)";
     events_.post(stats_.last_time_ns.load(), stats_.cycles.load(), "record", reply.message);

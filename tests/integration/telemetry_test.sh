@@ -107,6 +107,11 @@ commands)
   sleep 1
   "$L" record --remote-stop "${D[@]}" --name console >"$TMP/rt.out" 2>&1; check_rc "remote record stop" 0 $?
   contains "remote recording closed" "$TMP/rt.out" "closed .*remote.h5 \([0-9]+ cycles\)"
+  # The reply counts what the file holds (it counted before the last rows were written).
+  said=$(sed -n 's/.*closed .*remote.h5 (\([0-9]*\) cycles).*/\1/p' "$TMP/rt.out")
+  rows=$($PY -c "import h5py,sys; f=h5py.File(sys.argv[1],'r'); print(len(f['signals'][sorted(f['signals'])[0]]['cycle']))" "$TMP/remote.h5" 2>&1)
+  [ -n "$said" ] && [ "$said" = "$rows" ] && ok "the reply's count is the file's ($rows rows)" \
+    || bad "the reply says '$said' cycles, the file holds '$rows' rows"
   "$L" echo events --pipeline maglev6_hybrid --domain "$DOMAIN" --wait 5 --duration 3 >"$TMP/ev.out" 2>&1
   check_rc "echo events --duration exits 0 when events came" 0 $?
   contains "echo events counts what it printed" "$TMP/ev.out" "^lode echo: [1-9][0-9]* samples"
