@@ -60,6 +60,13 @@ Expected<HotSwap::PreparedPtr> HotSwap::prepare(const SwapRequest& request) {
                 (loaded->descriptor->kind == PluginKind::io ? std::string("an io board")
                                                             : "a " + std::string(to_string(loaded->descriptor->kind)) + " model") +
                 ", not a block that can stand in for " + incumbent->plugin_name);
+  // A block of another kind may stand in when its ports fit, but when it does not, that is
+  // the likelier mistake (a controller named for an estimator): said first.
+  const std::string other_kind =
+      incumbent->plugin.descriptor && loaded->descriptor->kind != incumbent->plugin.descriptor->kind
+          ? " (" + plugin + " is of kind " + to_string(loaded->descriptor->kind) + "; " + request.block + " runs " +
+                incumbent->plugin_name + ", of kind " + to_string(incumbent->plugin.descriptor->kind) + ")"
+          : std::string();
   p->report.new_plugin = plugin;
 
   // Its parameters.
@@ -97,7 +104,7 @@ Expected<HotSwap::PreparedPtr> HotSwap::prepare(const SwapRequest& request) {
   if (!diagnostics.empty()) {
     std::string why;
     for (const auto& d : diagnostics.items()) why += (why.empty() ? "" : "; ") + d.field + ": " + d.message;
-    return fail(plugin + " refused its configuration: " + why);
+    return fail(plugin + " refused its configuration" + other_kind + ": " + why);
   }
   if (!record->block) return fail("plugin " + plugin + " did not create a block");
 
@@ -107,7 +114,7 @@ Expected<HotSwap::PreparedPtr> HotSwap::prepare(const SwapRequest& request) {
                 " in the cycle (or is a shadow): it would read a stale value");
   // It must provide every output of the role, same size and units.
   if (const std::string problem = Roles::stand_in_problem(*record, *role); !problem.empty())
-    return fail(plugin + " cannot take the place of " + incumbent->plugin_name + ": it " + problem +
+    return fail(plugin + " cannot take the place of " + incumbent->plugin_name + other_kind + ": it " + problem +
                 " (a replacement must provide every output of the block, same size and units)");
 
   // Storage, bindings, activation.

@@ -277,7 +277,9 @@ TEST(HotSwap, RefusedPluginsLeaveTheIncumbentRunning) {
       {"io.sim", "{}", "an io board"},                                  // wrong kind
       {"estimator.glsdc", "{model: hall_fit}", "size mismatch"},        // kf's wiring does not fit it
       {"filter.biquad", "{type: lowpass, f_hz: 100, q: 0.7071, inputs: {in: glsdc.pose}}",
-       "has no output"},                                                 // configures, cannot stand in
+       "(filter.biquad is of kind filter; kf runs estimator.kalman, of kind estimator): it has no output"},  // configures, cannot stand in
+      {"controller.pid", "{}",  // another kind, refusing its parameters: the kind is said first
+       "controller.pid refused its configuration (controller.pid is of kind controller; kf runs estimator.kalman, of kind estimator): "},
       {"estimator.hybrid_h2hinf", "{q: 1, r: 1, hinf_theta: 0, d: 2}", "d"},  // refuses its parameters
       {"estimator.kalman", "{q: [1, 2]", "not valid YAML"},
       // Its wiring is read by the loader's own rules: a map or a half reference is refused
