@@ -1,4 +1,5 @@
 #include "lode/control.hpp"
+#include "lode/sdk/rt_log.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -246,7 +247,10 @@ ControlReply ControlService::handle(const ControlRequest& r, std::chrono::millis
   std::string error;
   if (!parse_value(r.value, e->tunables[index], value, error)) {
     auto reply = fail(r, "set " + r.block + "." + r.name + ": " + error + "; unchanged");
-    events_.post_limited(0, 0, "command_failed", reply.message + (r.client.empty() ? "" : " (by " + r.client + ")"));
+    std::int64_t time_ns = 0;
+    std::uint64_t cycle = 0;
+    rt_log_clock(time_ns, cycle);  // refused before it reached the RT thread: the cycle running now
+    events_.post_limited(time_ns, cycle, "command_failed", reply.message + (r.client.empty() ? "" : " (by " + r.client + ")"));
     return reply;
   }
   return exchange(r, *e, index, true, value, timeout);

@@ -1,5 +1,6 @@
 #include "lode/sdk/clock.hpp"
 #include "lode/hot_swap.hpp"
+#include "lode/sdk/rt_log.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -323,7 +324,10 @@ SwapReport HotSwap::swap(const SwapRequest& request, std::chrono::milliseconds t
     r.block = request.block;
     r.ok = false;
     r.message = prepared.error() + "; the running block is unchanged";
-    events_.post_limited(0, 0, "command_failed", r.message + (request.client.empty() ? "" : " (by " + request.client + ")"));
+    std::int64_t time_ns = 0;
+    std::uint64_t cycle = 0;
+    rt_log_clock(time_ns, cycle);  // refused before it reached the RT thread: the cycle running now
+    events_.post_limited(time_ns, cycle, "command_failed", r.message + (request.client.empty() ? "" : " (by " + request.client + ")"));
     return r;
   }
   return wait_and_finish(std::move(*prepared), timeout);
@@ -338,7 +342,10 @@ SwapReport HotSwap::promote(const std::string& shadow, std::chrono::milliseconds
     std::vector<std::string> names;
     for (const auto& s : pipeline_.shadows()) names.push_back(s.name);
     r.message = "promote: '" + shadow + "' is not a shadow" + (names.empty() ? " (this pipeline has none)" : " (shadows: " + join(names) + ")");
-    events_.post_limited(0, 0, "command_failed", r.message);
+    std::int64_t time_ns = 0;
+    std::uint64_t cycle = 0;
+    rt_log_clock(time_ns, cycle);
+    events_.post_limited(time_ns, cycle, "command_failed", r.message);
     return r;
   }
   auto p = PreparedPtr(new Prepared());

@@ -66,6 +66,11 @@ void rt_log_set_clock(std::int64_t time_ns, std::uint64_t cycle) noexcept {
   g_cycle.store(cycle, std::memory_order_relaxed);
 }
 
+void rt_log_clock(std::int64_t& time_ns, std::uint64_t& cycle) noexcept {
+  time_ns = g_time_ns.load(std::memory_order_relaxed);
+  cycle = g_cycle.load(std::memory_order_relaxed);
+}
+
 void rt_log(LogLevel level, const char* source, const char* format) noexcept {
   emit(level, source, format, 0, 0, 0, 0, 0);
 }

@@ -180,6 +180,14 @@ kill -INT "$RUNNER_PID"; wait "$RUNNER_PID"; RUNNER_PID=
   exercise lode_run "$LODE" run "$CONFIG" --clock real --duration 20 --no-telemetry --quiet --summary-json "$TMP/run.json"
   contains "lode run: summary counts the local requests" "$TMP/run.json" '"local_control": \{'
   contains "lode run: summary names the socket" "$TMP/run.json" "\"socket\": \"$SOCK\""
+  # A set refused before it reached the RT thread (out of range) is an event at the cycle then
+  # running, not at cycle 0 of a run that had long started.
+  if "$PY" - "$TMP/run.json" <<'EOF'; then echo "ok: lode run: a refused set is an event at its cycle"; else echo "FAIL: lode run: refused-set event"; fail=1; fi
+import json, sys
+events = [e for e in json.load(open(sys.argv[1]))["events"] if e["kind"] == "command_failed" and "outside" in e["text"]]
+print("   ", [(e["cycle"], e["text"][:60]) for e in events])
+sys.exit(0 if events and all(e["cycle"] > 0 for e in events) else 1)
+EOF
   # With telemetry on, both channels reach the same ControlService: set over DDS (--dds), read
   # back over the socket, on a DDS domain of its own.
   take_private_domain

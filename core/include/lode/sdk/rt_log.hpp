@@ -52,6 +52,9 @@ RtLogRing& rt_log_ring() noexcept;
 
 /// The scheduler keeps these current so records carry time and cycle without arguments.
 void rt_log_set_clock(std::int64_t time_ns, std::uint64_t cycle) noexcept;
+/// The clock last set: the time and cycle of the cycle running or last run, for what is
+/// posted off the RT thread about it (a refused command's event).
+void rt_log_clock(std::int64_t& time_ns, std::uint64_t& cycle) noexcept;
 
 void rt_log(LogLevel level, const char* source, const char* format) noexcept;
 void rt_log(LogLevel level, const char* source, const char* format, double a) noexcept;
