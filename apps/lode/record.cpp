@@ -4,6 +4,7 @@
 // every output on its own host instead.
 #include <cstdio>
 #include <deque>
+#include <filesystem>
 #include <map>
 #include <mutex>
 #include <set>
@@ -27,6 +28,15 @@ int record_topics(const Args& args) {
   const double duration = args.number("--duration", 0.0);
   const std::string path = args.positional[0];
   const auto wanted = split_list(args.option("--topics"));
+  {
+    // Said in the user's words before HDF5 says "unable to open file: name = ..., errno = 2".
+    const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+    std::error_code ec;
+    if (!parent.empty() && !std::filesystem::is_directory(parent, ec)) {
+      std::fprintf(stderr, "lode record: %s: the folder %s does not exist\n", path.c_str(), parent.string().c_str());
+      return kExitConfig;
+    }
+  }
   auto client = make_client(args, "record");
   if (!client) return kExitConfig;
   auto recorder = record::Recorder::create(path, "lode record");
@@ -115,7 +125,11 @@ int record_topics(const Args& args) {
     follow_new_topics(milliseconds(0));
   }
   if (!found && series_of_topic.empty()) {
-    std::fprintf(stderr, "lode: nothing to record: no matching lodestone topic appeared (see `lode topics`)\n");
+    std::fprintf(stderr, "lode: nothing to record: no matching lodestone topic appeared (see `lode topics`); "
+                         "%s not written\n", path.c_str());
+    (void)rec.close();
+    std::error_code ignored;
+    std::filesystem::remove(path, ignored);  // an empty recording is only something to trip over
     return kExitFault;
   }
   auto last_scan = Clock::now();

@@ -33,6 +33,16 @@ contains "the step that never rose says so" "$TMP/heavy.out" \
   "step x +at 1\.000 s of \+100\.0 um: rise never \(did not reach 90 %\), .*settling \(\+-2\.00 um\) never,"
 if grep -qi "nan" "$TMP/heavy.out"; then echo "FAIL: nan in the summary:"; grep -i nan "$TMP/heavy.out"; fail=1; else echo "ok: no nan in the summary"; fi
 
+# lode record: a folder that does not exist is said so, before anything starts; with nothing to
+# record, no empty file is left behind.
+"$LODE" record "$TMP/nodir/x.h5" --duration 1 >"$TMP/nodir.out" 2>&1; check_rc "record into a missing folder" 2 $?
+contains "record names the missing folder" "$TMP/nodir.out" "lode record: .*/nodir/x.h5: the folder .*/nodir does not exist"
+take_private_domain
+"$LODE" record "$TMP/none.h5" --duration 1 --wait 1 --domain "$DOMAIN" >"$TMP/none.out" 2>&1
+check_rc "record with no pipeline on the domain" 1 $?
+contains "record says nothing was written" "$TMP/none.out" "nothing to record: .*none.h5 not written"
+[ ! -e "$TMP/none.h5" ] && ok "no empty recording left behind" || bad "an empty $TMP/none.h5 was left behind"
+
 # The summary of the full demo is the README's table (the default duration, seed 1, the
 # simulated clock: deterministic). kawato_planar_test checks these figures against the
 # design's model; here the CLI's own summary must carry them, to the digits printed.
