@@ -9,13 +9,17 @@
 #include <cstdio>
 #include <cstdlib>
 
+#include "fatal_signals.hpp"
 #include "lode/pipeline.hpp"
 
 namespace lode {
 
 namespace {
 
-constexpr int kFatalSignals[] = {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT};
+using detail::kFatalSignals;
+using detail::signal_name;
+using detail::write_stderr;
+
 constexpr std::size_t kAlternateStackBytes = 64 * 1024;  // the handler needs little; overflow margin
 
 std::atomic<Pipeline*> g_pipeline{nullptr};
@@ -23,25 +27,8 @@ std::atomic<int> g_handled{0};
 // "<2>" when stderr is the journal's stream (systemd: $JOURNAL_STREAM is its device:inode), so
 // the journal files the line as critical; decided when the guard is armed, not in the handler.
 char g_journal_prefix[4] = "";
-struct sigaction g_previous[sizeof kFatalSignals / sizeof kFatalSignals[0]];
+struct sigaction g_previous[detail::kFatalSignalCount];
 bool g_installed = false;
-
-void write_stderr(const char* text) noexcept {
-  const std::size_t n = strlen(text);
-  const ssize_t written = write(STDERR_FILENO, text, n);
-  (void)written;  // nothing better to do when stderr is gone
-}
-
-const char* signal_name(int sig) noexcept {
-  switch (sig) {
-    case SIGSEGV: return "SIGSEGV";
-    case SIGBUS: return "SIGBUS";
-    case SIGFPE: return "SIGFPE";
-    case SIGILL: return "SIGILL";
-    case SIGABRT: return "SIGABRT";
-    default: return "a fatal signal";
-  }
-}
 
 // The decimal digits of `value` into `out` (at least 21 bytes); async-signal-safe.
 const char* decimal(long value, char* out) noexcept {
@@ -101,7 +88,7 @@ CrashGuard::CrashGuard(Pipeline& pipeline) {
     ss.ss_sp = alternate_stack;
     ss.ss_size = sizeof alternate_stack;
     (void)sigaltstack(&ss, nullptr);  // this thread's; elsewhere the handler uses the thread's stack
-    for (std::size_t i = 0; i < sizeof kFatalSignals / sizeof kFatalSignals[0]; ++i) {
+    for (std::size_t i = 0; i < detail::kFatalSignalCount; ++i) {
       struct sigaction sa{};
       sa.sa_sigaction = on_fatal_signal;
       sa.sa_flags = SA_SIGINFO | SA_RESETHAND | SA_ONSTACK;
@@ -117,7 +104,7 @@ CrashGuard::CrashGuard(Pipeline& pipeline) {
 CrashGuard::~CrashGuard() {
   g_pipeline.store(nullptr);
   if (g_installed) {
-    for (std::size_t i = 0; i < sizeof kFatalSignals / sizeof kFatalSignals[0]; ++i)
+    for (std::size_t i = 0; i < detail::kFatalSignalCount; ++i)
       (void)sigaction(kFatalSignals[i], &g_previous[i], nullptr);
     g_installed = false;
   }

@@ -8,35 +8,19 @@
 #include <algorithm>
 #include <atomic>
 
+#include "fatal_signals.hpp"
+
 namespace lode::detail {
 
 namespace {
-
-constexpr int kFatalSignals[] = {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT};
-constexpr std::size_t kSignalCount = sizeof kFatalSignals / sizeof kFatalSignals[0];
 
 std::mutex g_loading;
 // Written under g_loading before the handlers are installed; read only by the handler.
 char g_plugin_file[4096];
 std::atomic<long> g_loading_thread{0};
-struct sigaction g_previous[kSignalCount];
+struct sigaction g_previous[kFatalSignalCount];
 
 long this_thread_id() noexcept { return static_cast<long>(::syscall(SYS_gettid)); }
-
-void write_stderr(const char* text) noexcept {
-  const ssize_t written = ::write(STDERR_FILENO, text, ::strlen(text));
-  (void)written;  // nothing better to do when stderr is gone
-}
-
-const char* signal_name(int sig) noexcept {
-  switch (sig) {
-    case SIGSEGV: return "SIGSEGV";
-    case SIGBUS: return "SIGBUS";
-    case SIGFPE: return "SIGFPE";
-    case SIGILL: return "SIGILL";
-    default: return "SIGABRT";
-  }
-}
 
 extern "C" void on_fatal_signal_while_loading(int sig, siginfo_t* /*info*/, void* /*context*/) {
   // Another thread's crash (the RT thread of a running pipeline during a hot swap's load) is not
@@ -51,7 +35,7 @@ extern "C" void on_fatal_signal_while_loading(int sig, siginfo_t* /*info*/, void
   }
   // To whoever handled the signal before: raised now, it is delivered when this handler returns
   // (a faulting instruction would fault again anyway).
-  for (std::size_t i = 0; i < kSignalCount; ++i)
+  for (std::size_t i = 0; i < kFatalSignalCount; ++i)
     if (kFatalSignals[i] == sig) (void)::sigaction(sig, &g_previous[i], nullptr);
   (void)::raise(sig);
 }
@@ -63,7 +47,7 @@ PluginLoadGuard::PluginLoadGuard(const std::string& plugin_file) : serialised_(g
   ::memcpy(g_plugin_file, plugin_file.data(), n);
   g_plugin_file[n] = '\0';
   g_loading_thread.store(this_thread_id());
-  for (std::size_t i = 0; i < kSignalCount; ++i) {
+  for (std::size_t i = 0; i < kFatalSignalCount; ++i) {
     struct sigaction sa {};
     sa.sa_sigaction = on_fatal_signal_while_loading;
     sa.sa_flags = SA_SIGINFO | SA_ONSTACK;
@@ -73,7 +57,7 @@ PluginLoadGuard::PluginLoadGuard(const std::string& plugin_file) : serialised_(g
 }
 
 PluginLoadGuard::~PluginLoadGuard() {
-  for (std::size_t i = 0; i < kSignalCount; ++i) (void)::sigaction(kFatalSignals[i], &g_previous[i], nullptr);
+  for (std::size_t i = 0; i < kFatalSignalCount; ++i) (void)::sigaction(kFatalSignals[i], &g_previous[i], nullptr);
   g_loading_thread.store(0);
 }
 
