@@ -108,9 +108,19 @@ void Params::fail(std::string_view key, std::string message) {
   detail::ParamsTree& tree = *node_->tree;
   std::string field = node_->path + "." + std::string(key);
   if (tree.missing_fields.count(field) > 0 || !tree.reported.emplace(field, message).second) return;
-  if (message.rfind("missing required parameter", 0) == 0) tree.missing_fields.insert(field);
   tree.diagnostics->add(location(key), std::move(field), std::move(message));
 }
+
+namespace {
+
+/// A required field that is absent: reported, and marked so that what a plugin says of its
+/// defaulted value afterwards is not.
+void fail_missing(Params& params, std::string_view key, const char* what) {
+  params.fail(key, "missing required parameter '" + std::string(key) + "' (" + what + ")");
+  params.node()->tree->missing_fields.insert(params.node()->path + "." + std::string(key));
+}
+
+}  // namespace
 
 void Params::fail(std::string message) {
   ++node_->tree->errors;
@@ -178,7 +188,7 @@ std::vector<T> converted_elements(ParamsNode& node, const YAML::Node& list, cons
 double Params::number(std::string_view key) {
   LODE_PARAM_LOOKUP(key);
   if (!n.IsDefined() || n.IsNull()) {
-    fail(key, "missing required parameter '" + k + "' (a number)");
+    fail_missing(*this, key, "a number");
     return 0.0;
   }
   double v = 0.0;
@@ -197,7 +207,7 @@ double Params::number(std::string_view key, double fallback) {
 std::int64_t Params::integer(std::string_view key) {
   LODE_PARAM_LOOKUP(key);
   if (!n.IsDefined() || n.IsNull()) {
-    fail(key, "missing required parameter '" + k + "' (an integer)");
+    fail_missing(*this, key, "an integer");
     return 0;
   }
   std::int64_t v = 0;
@@ -224,7 +234,7 @@ bool Params::flag(std::string_view key, bool fallback) {
 std::string Params::text(std::string_view key) {
   LODE_PARAM_LOOKUP(key);
   if (!n.IsDefined() || n.IsNull()) {
-    fail(key, "missing required parameter '" + k + "' (a text)");
+    fail_missing(*this, key, "a text");
     return {};
   }
   if (!n.IsScalar()) {
@@ -269,7 +279,7 @@ std::string Params::choice(std::string_view key, const std::vector<std::string>&
 std::vector<double> Params::numbers(std::string_view key, std::optional<std::size_t> size) {
   LODE_PARAM_LOOKUP(key);
   if (!n.IsDefined() || n.IsNull()) {
-    fail(key, "missing required parameter '" + k + "' (a list of numbers)");
+    fail_missing(*this, key, "a list of numbers");
     return std::vector<double>(size.value_or(0), 0.0);
   }
   if (n.IsScalar() && size.value_or(1) == 1) {
@@ -363,7 +373,7 @@ Params Params::child(std::string_view key) {
   auto c = optional_child(key);
   if (c) return *c;
   if (ok() || !has(key)) {
-    if (!has(key)) fail(key, "missing required parameter '" + std::string(key) + "' (a map)");
+    if (!has(key)) fail_missing(*this, key, "a map");
   }
   return child_of(node_, YAML::Node(YAML::NodeType::Map), node_->path + "." + std::string(key));
 }
@@ -372,7 +382,7 @@ std::vector<Params> Params::items(std::string_view key) {
   LODE_PARAM_LOOKUP(key);
   std::vector<Params> out;
   if (!n.IsDefined() || n.IsNull()) {
-    fail(key, "missing required parameter '" + k + "' (a list of maps)");
+    fail_missing(*this, key, "a list of maps");
     return out;
   }
   if (!n.IsSequence() || n.size() == 0) {
