@@ -176,11 +176,6 @@ StepStatus ReplayBoard::step(const Tick& tick) noexcept {
   return StepStatus::ok;
 }
 
-std::vector<std::uint64_t> ReplayBoard::recorded_cycles() const {
-  if (streams_.empty()) return {};
-  return {streams_.front().cycle, streams_.front().cycle + rows_};
-}
-
 void ReplayBoard::describe(Json& out) const {
   out["recording"] = path_;
   out["block"] = block_;

@@ -50,8 +50,6 @@ class ReplayBoard final : public Block, public Board {
   /// Cycle numbers between the first and the last row that the recording has no row for: the
   /// periods its real-time loop skipped after overruns.
   [[nodiscard]] std::uint64_t skipped_cycles() const noexcept { return skipped_cycles_; }
-  /// The recorded cycle number of each row (allocates: not for step()).
-  [[nodiscard]] std::vector<std::uint64_t> recorded_cycles() const;
 
  private:
   struct Stream {
