@@ -10,6 +10,7 @@
 
 #include "commands.hpp"
 #include "remote_client.hpp"
+#include "sample_continuity.hpp"
 
 namespace lode::cli {
 namespace {
@@ -27,7 +28,8 @@ int echo(const Args& args) {
   const std::string what = args.positional[0];
   const bool table = args.has_flag("--table") && isatty(STDOUT_FILENO);
   std::mutex out_mutex;
-  std::uint64_t received = 0, gaps = 0, out_of_order = 0;
+  std::uint64_t received = 0;
+  std::optional<SampleContinuity> continuity;  // of the signal echoed
   std::optional<std::uint64_t> first_cycle, last_cycle;
   std::vector<std::unique_ptr<dds::Subscription>> subs;
   // --latency: capture on the RT thread -> taken by this process (same host: one clock).
@@ -106,12 +108,10 @@ int echo(const Args& args) {
     auto sub = client->subscribe(m, [&](const dds::SignalMeta& meta_, const dds::Sample& s) {
       std::lock_guard lock(out_mutex);
       if (count > 0 && received >= count) return;  // enough; the rest arrives while unsubscribing
-      // The newest cycle so far: a sample from before it (out of order, or from a namesake
-      // pipeline on another cycle count) neither moves it back nor makes the next one a gap.
-      if (last_cycle) {
-        if (s.cycle <= *last_cycle) ++out_of_order;
-        else if (s.cycle != *last_cycle + meta_.decimation) gaps += (s.cycle - *last_cycle) / meta_.decimation - 1;
-      }
+      // Missing: by each writer's sample numbers (a namesake pipeline on another cycle count
+      // is another writer); the cycles shown: the first and the newest.
+      if (!continuity) continuity.emplace(meta_.decimation);
+      continuity->add(s.writer, s.sequence, s.cycle);
       if (!first_cycle) first_cycle = s.cycle;
       if (!last_cycle || s.cycle > *last_cycle) last_cycle = s.cycle;
       ++received;
@@ -152,12 +152,17 @@ int echo(const Args& args) {
   subs.clear();
   std::fflush(stdout);
   std::lock_guard lock(out_mutex);
-  if (first_cycle)
-    std::fprintf(stderr, "lode echo: %llu samples, cycles %llu..%llu, %llu missing, %llu out of order (%s)\n",
+  if (first_cycle) {
+    // Echo follows no timing reports: a cycle never published is said as such, not as lost.
+    std::string unsent;
+    if (continuity->unsent() > 0)
+      unsent = ", " + std::to_string(continuity->unsent()) +
+               " never published (periods the loop skipped after overruns, or telemetry_dropped in `lode echo timing`)";
+    std::fprintf(stderr, "lode echo: %llu samples, cycles %llu..%llu, %llu missing%s, %llu out of order (%s)\n",
                  static_cast<unsigned long long>(received), static_cast<unsigned long long>(*first_cycle),
-                 static_cast<unsigned long long>(*last_cycle), static_cast<unsigned long long>(gaps),
-                 static_cast<unsigned long long>(out_of_order), why.c_str());
-  else
+                 static_cast<unsigned long long>(*last_cycle), static_cast<unsigned long long>(continuity->lost()),
+                 unsent.c_str(), static_cast<unsigned long long>(continuity->out_of_order()), why.c_str());
+  } else
     std::fprintf(stderr, "lode echo: %llu samples (%s)\n", static_cast<unsigned long long>(received), why.c_str());
   report_malformed(*client, "echo");
   if (!warned_namesakes && !followed.empty()) warn_namesakes(*client, followed, "echo");

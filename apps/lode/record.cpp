@@ -1,7 +1,9 @@
 // lode record FILE: every live topic (or --topics) and the events into one HDF5 file until
 // Ctrl-C, --duration, or the pipelines stop; a lost sample is counted per series and makes
-// the exit code 1. With --remote-start/--remote-stop: ask the running pipeline to record
-// every output on its own host instead.
+// the exit code 1, while the periods a real-time loop skipped after overruns (which publish
+// nothing) are told apart by the pipelines' timing reports (sample_continuity.hpp). With
+// --remote-start/--remote-stop: ask the running pipeline to record every output on its own
+// host instead.
 #include <cstdio>
 #include <deque>
 #include <filesystem>
@@ -13,6 +15,7 @@
 #include "commands.hpp"
 #include "lode/record/hdf5_recorder.hpp"
 #include "remote_client.hpp"
+#include "sample_continuity.hpp"
 
 namespace lode::cli {
 namespace {
@@ -59,8 +62,16 @@ int record_topics(const Args& args) {
   std::mutex queue_mutex;
   std::deque<Row> rows;
   std::deque<EventRow> event_rows;
+  std::deque<dds::TimingSample> timing_rows;
   std::vector<std::unique_ptr<dds::Subscription>> subs;
+  // Kept until the end: the last timing report places the last gaps.
+  std::vector<std::unique_ptr<dds::Subscription>> timing_subs;
   std::map<std::string, int> series_of_topic;
+  struct Continuity {
+    std::string pipeline;
+    SampleContinuity samples;
+  };
+  std::map<int, Continuity> continuity;  // by series
   std::set<std::string> pipelines_followed;
   std::set<std::string> names_used;
 
@@ -102,6 +113,7 @@ int record_topics(const Args& args) {
         continue;
       }
       series_of_topic[m.topic] = series;
+      continuity.emplace(series, Continuity{m.pipeline, SampleContinuity(m.decimation)});
       subs.push_back(std::move(*sub));
       std::fprintf(stderr, "lode record: %s -> %s:/signals/%s (%g Hz)\n", m.topic.c_str(), path.c_str(),
                    info.name.c_str(), m.rate_hz);
@@ -114,6 +126,11 @@ int record_topics(const Args& args) {
           event_rows.push_back({e});
         });
         if (ev) subs.push_back(std::move(*ev));
+        auto timing = client->subscribe_timing(m.pipeline, [&](const dds::TimingSample& t) {
+          std::lock_guard lock(queue_mutex);
+          timing_rows.push_back(t);
+        });
+        if (timing) timing_subs.push_back(std::move(*timing));
       }
       any = true;
     }
@@ -138,13 +155,21 @@ int record_topics(const Args& args) {
   auto drain = [&] {
     std::deque<Row> r;
     std::deque<EventRow> e;
+    std::deque<dds::TimingSample> t;
     {
       std::lock_guard lock(queue_mutex);
       r.swap(rows);
       e.swap(event_rows);
+      t.swap(timing_rows);
     }
-    for (const auto& row : r)
+    for (const auto& row : r) {
       rec.append(row.series, row.sample.cycle, row.sample.stamp_ns, row.sample.captured_ns, row.sample.values.data());
+      if (auto it = continuity.find(row.series); it != continuity.end())
+        it->second.samples.add(row.sample.writer, row.sample.sequence, row.sample.cycle);
+    }
+    for (const auto& timing : t)
+      for (auto& [series, c] : continuity)
+        if (c.pipeline == timing.pipeline) c.samples.timing(timing.cycle, timing.telemetry_dropped);
     for (const auto& ev : e) {
       rec.add_event(ev.event.cycle, ev.event.stamp_ns, ev.event.kind, ev.event.text);
       if (ev.event.kind == "stop") watch.pipeline_stopped(ev.event.pipeline);
@@ -164,11 +189,33 @@ int record_topics(const Args& args) {
   }
   subs.clear();
   drain();
+  // A gap after the last timing report is placed by the next one (a running pipeline reports
+  // at telemetry.timing_rate_hz, 2 Hz by default): wait for it, not for a stopped pipeline.
+  const auto placed = [&] {
+    for (const auto& [series, c] : continuity)
+      if (c.samples.unsent() > 0 && !c.samples.timing_reaches(c.samples.last_cycle()) &&
+          !watch.stopped(c.pipeline))
+        return false;
+    return true;
+  };
+  for (const auto give_up = Clock::now() + std::chrono::seconds(3); !placed() && Clock::now() < give_up;) {
+    std::this_thread::sleep_for(milliseconds(50));
+    drain();
+  }
+  timing_subs.clear();
+  drain();
   int rc = kExitOk;
   for (const auto& [topic, series] : series_of_topic) {
-    std::fprintf(stderr, "lode record: %-44s %llu samples, %llu missing\n", topic.c_str(),
-                 static_cast<unsigned long long>(rec.samples(series)), static_cast<unsigned long long>(rec.gaps(series)));
-    if (rec.gaps(series) > 0) rc = kExitFault;  // never silent
+    const SampleContinuity& c = continuity.at(series).samples;
+    const SampleContinuity::Verdict verdict = c.classify();
+    rec.account(series, verdict.missing, verdict.skipped);
+    std::string skipped;
+    if (verdict.skipped > 0)
+      skipped = ", " + std::to_string(verdict.skipped) + " not due (periods the loop skipped after overruns)";
+    std::fprintf(stderr, "lode record: %-44s %llu samples, %llu missing%s\n", topic.c_str(),
+                 static_cast<unsigned long long>(rec.samples(series)),
+                 static_cast<unsigned long long>(verdict.missing), skipped.c_str());
+    if (verdict.missing > 0) rc = kExitFault;  // never silent
   }
   if (auto st = rec.close(); !st) {
     std::fprintf(stderr, "lode: %s\n", st.message().c_str());

@@ -59,6 +59,11 @@ class StopWatch {
     std::lock_guard lock(mutex_);
     followed_.insert(pipeline);
   }
+  /// Whether `pipeline` has posted its "stop" event.
+  bool stopped(const std::string& pipeline) {
+    std::lock_guard lock(mutex_);
+    return stopped_.count(pipeline) > 0;
+  }
   void done() { done_.store(true); }
   /// Whoever read the standard output has gone (`lode echo X | head`): nothing more to print.
   void output_closed() { output_closed_.store(true); }

@@ -19,6 +19,7 @@
 #include <functional>
 #include <map>
 #include <optional>
+#include <type_traits>
 #include <memory>
 #include <mutex>
 #include <set>
@@ -72,13 +73,16 @@ class TakeListener final : public fdds::DataReaderListener {
 };
 
 /// Every sample `reader` holds, in order, each valid one handed to `use` (the others only
-/// announce that an instance was disposed or its writer left).
+/// announce that an instance was disposed or its writer left), with its SampleInfo where
+/// `use` takes it.
 template <typename Message, typename Use>
 void take_valid(fdds::DataReader* reader, Use&& use) {
   Message message;
   fdds::SampleInfo info;
   while (reader->take_next_sample(&message, &info) == ReturnCode_t::RETCODE_OK) {
-    if (info.valid_data) use(message);
+    if (!info.valid_data) continue;
+    if constexpr (std::is_invocable_v<Use, const Message&, const fdds::SampleInfo&>) use(message, info);
+    else use(message);
   }
 }
 

@@ -15,14 +15,27 @@ namespace {
 
 using OnSample = std::function<void(const SignalMeta&, const Sample&)>;
 
+/// FNV-1a of the writer's GUID: which writer sent a sample, in the 8 bytes Sample has for it.
+std::uint64_t writer_hash(const eprosima::fastrtps::rtps::GUID_t& guid) {
+  std::uint64_t h = 0xcbf29ce484222325ULL;
+  const auto mix = [&h](const auto& bytes) {
+    for (const auto byte : bytes) h = (h ^ static_cast<std::uint8_t>(byte)) * 0x100000001b3ULL;
+  };
+  mix(guid.guidPrefix.value);
+  mix(guid.entityId.value);
+  return h;
+}
+
 /// The drain of a signal or state topic, `Message` being SignalSample or StageState: the
 /// two differ only in where the values come from (`values_of`).
 template <typename Message, typename ValuesOf>
 TakeListener::Drain sample_drain(const SignalMeta& meta, const OnSample& on_sample, ValuesOf values_of) {
   return [meta, on_sample, values_of](fdds::DataReader* reader, Gate& g) {
     Sample out;
-    take_valid<Message>(reader, [&](const Message& s) {
+    take_valid<Message>(reader, [&](const Message& s, const fdds::SampleInfo& info) {
       out.received_ns = monotonic_ns();
+      out.writer = writer_hash(info.sample_identity.writer_guid());
+      out.sequence = static_cast<std::uint64_t>(info.sample_identity.sequence_number().to64long());
       out.cycle = s.cycle();
       out.stamp_ns = s.stamp_ns();
       out.captured_ns = s.captured_ns();

@@ -39,6 +39,10 @@ struct Recorder::Impl {
     std::vector<std::vector<double>> values;
     std::vector<double> time_s;  // scratch for the write
     std::uint64_t samples = 0, gaps = 0, out_of_order = 0;
+    // Recorder::account: the caller's count of missing samples replaces `gaps`, and the
+    // samples never due (skipped periods) are written as `skipped`.
+    bool accounted = false;
+    std::uint64_t accounted_missing = 0, skipped = 0;
     std::uint64_t last_cycle = 0;
     bool has_last_cycle = false;
     bool broken = false;  // a write failed: later rows are dropped (the error was reported)
@@ -181,12 +185,18 @@ struct Recorder::Impl {
 
   void write_counters(Series& s) {
     for (const auto& [key, value] : {std::pair{"samples", static_cast<std::uint64_t>(s.rows_written)},
-                                     std::pair{"gaps", s.gaps}, std::pair{"out_of_order", s.out_of_order}}) {
+                                     std::pair{"gaps", gaps_of(s)}, std::pair{"out_of_order", s.out_of_order}}) {
       if (Status status = update_counter_attribute(s.group.get(), key, value); !status) {
         fail("/signals/" + s.info.name + ": " + status.message());
       }
     }
+    if (s.accounted) {
+      if (Status status = update_counter_attribute(s.group.get(), "skipped", s.skipped); !status)
+        fail("/signals/" + s.info.name + ": " + status.message());
+    }
   }
+
+  static std::uint64_t gaps_of(const Series& s) { return s.accounted ? s.accounted_missing : s.gaps; }
 };
 
 Recorder::Recorder(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -488,7 +498,17 @@ std::uint64_t Recorder::samples(int series) const {
 
 std::uint64_t Recorder::gaps(int series) const {
   if (series < 0 || static_cast<std::size_t>(series) >= impl_->series.size()) return 0;
-  return impl_->series[static_cast<std::size_t>(series)]->gaps;
+  return Impl::gaps_of(*impl_->series[static_cast<std::size_t>(series)]);
+}
+
+void Recorder::account(int series, std::uint64_t missing, std::uint64_t skipped) {
+  if (series < 0 || static_cast<std::size_t>(series) >= impl_->series.size()) {
+    return impl_->fail("account for unknown series " + std::to_string(series));
+  }
+  Impl::Series& s = *impl_->series[static_cast<std::size_t>(series)];
+  s.accounted = true;
+  s.accounted_missing = missing;
+  s.skipped = skipped;
 }
 
 std::uint64_t Recorder::out_of_order(int series) const {

@@ -29,6 +29,13 @@ struct Sample {
   std::int64_t captured_ns = 0;
   std::int64_t received_ns = 0;  ///< CLOCK_MONOTONIC when the listener took it
   std::vector<double> values;    ///< state: pose, twist, covariance concatenated
+  /// Which DDS writer sent it (a hash of its GUID) and that writer's sequence number for it
+  /// (1, 2, ...; 0: unknown). One writer's samples follow each other by 1 unless some were
+  /// lost on the way; a step in `cycle` with none in `sequence` is a cycle the pipeline never
+  /// published (its loop skipped the period, or its telemetry could not hand the sample over,
+  /// which TimingSample::telemetry_dropped counts).
+  std::uint64_t writer = 0;
+  std::uint64_t sequence = 0;
 };
 
 struct EventSample {

@@ -103,7 +103,13 @@ class Recorder {
 
   [[nodiscard]] std::uint64_t samples(int series) const;
   /// Samples missing between consecutive cycles (vs the decimation): a lost sample is visible.
+  /// After account(): the count given there.
   [[nodiscard]] std::uint64_t gaps(int series) const;
+  /// What the caller knows better than the cycle numbers: of the samples the cycles say are
+  /// absent, `missing` were lost and `skipped` were never due (periods the real-time loop
+  /// skipped after an overrun publish nothing). Replaces gaps(); both are written as the
+  /// series' `gaps` and `skipped` attributes at the next flush() or close().
+  void account(int series, std::uint64_t missing, std::uint64_t skipped);
   /// Samples whose cycle was not greater than the previous one (duplicates, reordering).
   [[nodiscard]] std::uint64_t out_of_order(int series) const;
   [[nodiscard]] const std::string& path() const;
