@@ -31,21 +31,18 @@ int record_topics(const Args& args) {
   const double duration = args.number("--duration", 0.0);
   const std::string path = args.positional[0];
   const auto wanted = split_list(args.option("--topics"));
-  {
-    // Said in the user's words before HDF5 says "unable to open file: name = ..., errno = 2".
-    const std::filesystem::path parent = std::filesystem::path(path).parent_path();
-    std::error_code ec;
-    if (!parent.empty() && !std::filesystem::is_directory(parent, ec)) {
-      std::fprintf(stderr, "lode record: %s: the folder %s does not exist\n", path.c_str(), parent.string().c_str());
-      return kExitConfig;
-    }
-  }
-  auto client = make_client(args, "record");
-  if (!client) return kExitConfig;
+  // The file first: a path that cannot be written is refused before anything starts.
   auto recorder = record::Recorder::create(path, "lode record");
   if (!recorder) {
-    std::fprintf(stderr, "lode: %s\n", recorder.error().c_str());
-    return kExitFault;
+    std::fprintf(stderr, "lode record: %s\n", recorder.error().c_str());
+    return kExitConfig;
+  }
+  auto client = make_client(args, "record");
+  if (!client) {
+    (void)(*recorder)->close();
+    std::error_code ignored;
+    std::filesystem::remove(path, ignored);  // nothing was recorded into it
+    return kExitConfig;
   }
   auto& rec = **recorder;
   install_stop_handlers();

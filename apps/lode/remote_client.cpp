@@ -34,8 +34,10 @@ dds::ParticipantOptions participant_options(const Args& args, const std::string&
 /// The pipeline a command goes to: --pipeline, "pipeline/..." in the target, or the only
 /// one publishing. While none has been heard of, `came_up_locally` is asked every 100 ms: when
 /// it says a pipeline is now reachable on this host, the search ends there (nullopt, nothing
-/// printed).
-std::optional<std::string> target_pipeline(const Args& args, dds::Client& client, std::string& target,
+/// printed). Otherwise it says why there is none and sets `refusal` to the exit code: 1 when
+/// no pipeline is live (as `lode echo` and `lode topics` say it), 2 when several are and the
+/// command names none (the user must choose).
+std::optional<std::string> target_pipeline(const Args& args, dds::Client& client, std::string& target, int& refusal,
                                            const std::function<bool()>& came_up_locally) {
   if (args.has("--pipeline")) return args.option("--pipeline");
   const auto slash = target.find('/');
@@ -69,9 +71,11 @@ std::optional<std::string> target_pipeline(const Args& args, dds::Client& client
   }
   if (pipelines.size() == 1) return pipelines[0];
   if (pipelines.empty() && came_up_locally && came_up_locally()) return std::nullopt;  // one last look
-  if (pipelines.empty())
+  if (pipelines.empty()) {
     std::fprintf(stderr, "lode: no pipeline is publishing on this domain (give --pipeline NAME, check --domain/--transport)\n");
-  else {
+    refusal = kExitFault;
+  } else {
+    refusal = kExitConfig;
     std::fprintf(stderr, "lode: several pipelines are live; give --pipeline NAME (or NAME/BLOCK...):");
     for (const auto& p : pipelines) std::fprintf(stderr, " %s", p.c_str());
     std::fprintf(stderr, "\n");
@@ -247,14 +251,15 @@ int send_command(const Args& args, const std::string& role, std::string target,
     return late.has_value() || refusal != 0;
   };
   std::optional<std::string> target_name = pipeline;
-  if (!target_name) target_name = target_pipeline(args, *client, target, came_up_locally);
+  int not_found = kExitConfig;
+  if (!target_name) target_name = target_pipeline(args, *client, target, not_found, came_up_locally);
   if (refusal != 0) return refusal;
   if (late) {
     client.reset();
     return send_local(role, *late, *request, args);
   }
   // None live, or several and none named: a command must never go to a guessed pipeline.
-  if (!target_name) return kExitConfig;
+  if (!target_name) return not_found;
   return send(args, *client, *target_name, *request);
 }
 

@@ -36,12 +36,20 @@ if grep -qi "nan" "$TMP/heavy.out"; then echo "FAIL: nan in the summary:"; grep 
 # lode record: a folder that does not exist is said so, before anything starts; with nothing to
 # record, no empty file is left behind.
 "$LODE" record "$TMP/nodir/x.h5" --duration 1 >"$TMP/nodir.out" 2>&1; check_rc "record into a missing folder" 2 $?
-contains "record names the missing folder" "$TMP/nodir.out" "lode record: .*/nodir/x.h5: the folder .*/nodir does not exist"
+contains "record names the missing folder" "$TMP/nodir.out" "lode record: recording '.*/nodir/x.h5': cannot create the file: the folder .*/nodir does not exist$"
+"$LODE" run "$SRC/config/kawato_planar.yaml" --record "$TMP/nodir/x.h5" --no-telemetry --quiet >"$TMP/run_nodir.out" 2>&1
+check_rc "run --record into a missing folder" 1 $?
+contains "run --record names the missing folder" "$TMP/run_nodir.out" "cannot create the file: the folder .*/nodir does not exist; nothing was started$"
 take_private_domain
 "$LODE" record "$TMP/none.h5" --duration 1 --wait 1 --domain "$DOMAIN" >"$TMP/none.out" 2>&1
 check_rc "record with no pipeline on the domain" 1 $?
 contains "record says nothing was written" "$TMP/none.out" "nothing to record: .*none.h5 not written"
 [ ! -e "$TMP/none.h5" ] && ok "no empty recording left behind" || bad "an empty $TMP/none.h5 was left behind"
+# No pipeline to command is a fault (1), as for echo and record; naming none among several is
+# the usage error (2).
+"$LODE" set ref.offset.x 1 --dds --wait 1 --domain "$DOMAIN" >"$TMP/set_none.out" 2>&1
+check_rc "set with no pipeline on the domain" 1 $? "$TMP/set_none.out"
+contains "set says no pipeline is publishing" "$TMP/set_none.out" "^lode: no pipeline is publishing on this domain"
 
 # The summary of the full demo is the README's table (the default duration, seed 1, the
 # simulated clock: deterministic). kawato_planar_test checks these figures against the

@@ -718,7 +718,12 @@ TEST(Hdf5RecorderTest, ErrorsNameThePathAndTheField) {
   auto missing_dir = Recorder::create("/nonexistent-dir/x.h5", "lode record");
   ASSERT_FALSE(missing_dir);
   EXPECT_NE(missing_dir.error().find("/nonexistent-dir/x.h5"), std::string::npos) << missing_dir.error();
-  EXPECT_NE(missing_dir.error().find("No such file or directory"), std::string::npos) << missing_dir.error();
+  EXPECT_NE(missing_dir.error().find("the folder /nonexistent-dir does not exist"), std::string::npos)
+      << missing_dir.error();
+  // A folder where the file should go is named as such, not in HDF5's words.
+  auto folder = Recorder::create(::testing::TempDir(), "lode record");
+  ASSERT_FALSE(folder);
+  EXPECT_NE(folder.error().find("cannot create the file: it is a folder"), std::string::npos) << folder.error();
 
   const std::string path = scratch_path("errors.h5");
   auto recorder = Recorder::create(path, "lode record");

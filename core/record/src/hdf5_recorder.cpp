@@ -5,6 +5,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <filesystem>
+
 #include "hdf5_common.hpp"
 #include "read_in_child.hpp"
 
@@ -199,6 +201,20 @@ struct Recorder::Impl {
   static std::uint64_t gaps_of(const Series& s) { return s.accounted ? s.accounted_missing : s.gaps; }
 };
 
+namespace {
+/// Why H5Fcreate failed, in the user's words where the cause is a common one (HDF5 says
+/// "unable to create file: unable to open file: name = ..., errno = 2, ...").
+std::string why_not_created(const std::string& path) {
+  const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+  const std::string folder = parent.empty() ? std::string(".") : parent.string();
+  std::error_code ec;
+  if (!std::filesystem::is_directory(folder, ec)) return "the folder " + folder + " does not exist";
+  if (std::filesystem::is_directory(path, ec)) return "it is a folder";
+  if (::access(folder.c_str(), W_OK) != 0) return "the folder " + folder + " is not writable by this user";
+  return hdf5_message();
+}
+}  // namespace
+
 Recorder::Recorder(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 
 Recorder::~Recorder() { (void)close(); }
@@ -217,7 +233,7 @@ Expected<std::unique_ptr<Recorder>> Recorder::create(const std::string& path, co
     (void)::unlink(path.c_str());
   impl->file = Handle(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT));
   if (!impl->file.valid()) {
-    return Status::error("recording '" + path + "': cannot create the file: " + hdf5_message());
+    return Status::error("recording '" + path + "': cannot create the file: " + why_not_created(path));
   }
   const hid_t root = impl->file.get();
   const std::int32_t version = kFormatVersion;
