@@ -19,6 +19,8 @@
 #include <cstdlib>
 #include <cstring>
 #include <limits>
+#include <memory>
+#include <mutex>
 #include <utility>
 
 namespace lode::cli {
@@ -152,6 +154,8 @@ LocalControlStats LocalControlServer::stats() const {
 
 void LocalControlServer::serve() {
   struct Conn {
+    std::uint64_t id = 0;
+    int pending = 0;  ///< swaps of this client still running on a worker thread
     int fd = -1;
     std::string who;  ///< "local pid N uid U"
     std::string in, out;
@@ -161,6 +165,22 @@ void LocalControlServer::serve() {
   std::vector<Conn> conns;
   std::vector<pollfd> fds;
   constexpr std::size_t kMaxPending = 1 << 20;  // reply bytes queued: stop reading above this
+  std::uint64_t next_conn_id = 0;
+
+  // A swap can take as long as its shadow period (minutes): it runs on a thread of its own,
+  // so `lode set` and the rest are answered meanwhile, and its reply is queued here when done.
+  struct Finished {
+    std::uint64_t conn;
+    std::string line;
+  };
+  struct Worker {
+    std::thread thread;
+    std::shared_ptr<std::atomic<bool>> done;
+  };
+  std::mutex finished_mutex;
+  std::vector<Finished> finished;
+  std::vector<Worker> workers;
+  const int finished_fd = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
 
   const auto reply_line = [](const ControlReply& r) { return encode_reply(r) + "\n"; };
   const auto handle_line = [&](Conn& c, std::string line) {
@@ -176,6 +196,30 @@ void LocalControlServer::serve() {
     } else {
       requests_.fetch_add(1);
       request->client = request->client.empty() ? c.who : request->client + " via " + c.who;
+      if ((request->kind == "swap" || request->kind == "promote") && finished_fd >= 0) {
+        ++c.pending;
+        auto done = std::make_shared<std::atomic<bool>>(false);
+        workers.push_back({std::thread([&, conn = c.id, request = *request, done] {
+                             ControlReply r;
+                             try {
+                               r = service_.handle(request, options_.handle_timeout);
+                             } catch (const std::exception& ex) {
+                               r.message = request.kind + ": internal error: " + ex.what();
+                             }
+                             r.id = request.id;
+                             {
+                               std::lock_guard lock(finished_mutex);
+                               finished.push_back({conn, reply_line(r)});
+                             }
+                             done->store(true);
+                             const std::uint64_t one = 1;
+                             if (::write(finished_fd, &one, sizeof one) < 0) {
+                               // The counter is already set: the loop wakes anyway.
+                             }
+                           }),
+                           done});
+        return;
+      }
       try {
         reply = service_.handle(*request, options_.handle_timeout);
       } catch (const std::exception& ex) {
@@ -191,6 +235,7 @@ void LocalControlServer::serve() {
     fds.clear();
     fds.push_back({stop_fd_, POLLIN, 0});
     fds.push_back({listen_fd_, POLLIN, 0});
+    fds.push_back({finished_fd, POLLIN, 0});
     for (const auto& c : conns) {
       short ev = 0;
       if (!c.closing && c.out.size() < kMaxPending) ev |= POLLIN;
@@ -201,7 +246,7 @@ void LocalControlServer::serve() {
     int wait_ms = -1;
     const auto now = Clock::now();
     for (const auto& c : conns) {
-      if (c.closing) continue;
+      if (c.closing || c.pending > 0) continue;  // not idle while its swap runs
       const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(c.last_input + options_.idle_timeout - now);
       const int ms = static_cast<int>(std::clamp<long long>(left.count() + 1, 0, 1 << 30));
       wait_ms = wait_ms < 0 ? ms : std::min(wait_ms, ms);
@@ -212,10 +257,32 @@ void LocalControlServer::serve() {
     }
     if (fds[0].revents) break;
     const std::size_t polled = conns.size();  // conns accepted below are polled next round
+    if (fds[2].revents & POLLIN) {
+      std::uint64_t count = 0;
+      if (::read(finished_fd, &count, sizeof count) < 0) {
+        // EAGAIN: another round took it; the queue below is what counts.
+      }
+      std::vector<Finished> replies;
+      {
+        std::lock_guard lock(finished_mutex);
+        replies.swap(finished);
+      }
+      for (auto& r : replies) {
+        const auto it = std::find_if(conns.begin(), conns.end(), [&](const Conn& c) { return c.id == r.conn; });
+        if (it == conns.end()) continue;  // the client has gone
+        it->out += r.line;
+        --it->pending;
+      }
+      for (std::size_t w = workers.size(); w-- > 0;) {
+        if (!workers[w].done->load()) continue;
+        workers[w].thread.join();
+        workers.erase(workers.begin() + static_cast<std::ptrdiff_t>(w));
+      }
+    }
 
     for (std::size_t k = 0; k < polled; ++k) {
       Conn& c = conns[k];
-      const short re = fds[k + 2].revents;
+      const short re = fds[k + 3].revents;
       if (re & (POLLIN | POLLHUP | POLLERR)) {
         char buf[4096];
         const ssize_t n = ::recv(c.fd, buf, sizeof buf, 0);
@@ -256,7 +323,7 @@ void LocalControlServer::serve() {
     // Clients silent for idle_timeout are told why and dropped (their slot is freed).
     for (std::size_t k = 0; k < polled; ++k) {
       Conn& c = conns[k];
-      if (c.closing || Clock::now() - c.last_input < options_.idle_timeout) continue;
+      if (c.closing || c.pending > 0 || Clock::now() - c.last_input < options_.idle_timeout) continue;
       idle_closed_.fetch_add(1);
       ControlReply r;
       r.message = "idle for " + std::to_string(options_.idle_timeout.count()) +
@@ -268,7 +335,7 @@ void LocalControlServer::serve() {
     }
     // Drop finished clients.
     for (std::size_t k = conns.size(); k-- > 0;) {
-      if (conns[k].closing && conns[k].out.empty()) {
+      if (conns[k].closing && conns[k].out.empty() && conns[k].pending == 0) {
         ::close(conns[k].fd);
         conns.erase(conns.begin() + static_cast<std::ptrdiff_t>(k));
       }
@@ -289,6 +356,7 @@ void LocalControlServer::serve() {
           continue;
         }
         Conn c;
+        c.id = next_conn_id++;
         c.fd = fd;
         const auto cred = peer_of(fd);
         c.who = cred ? "local pid " + std::to_string(cred->pid) + " uid " + std::to_string(cred->uid) : "local client";
@@ -297,6 +365,9 @@ void LocalControlServer::serve() {
     }
   }
   for (auto& c : conns) ::close(c.fd);
+  // A swap still running ends with the run: its wait sees the loop stop.
+  for (auto& w : workers) w.thread.join();
+  if (finished_fd >= 0) ::close(finished_fd);
 }
 
 // ---------------------------------------------------------------------------------------

@@ -96,9 +96,28 @@ milliseconds reply_timeout(const Args& args) {
 
 std::uint64_t new_request_id() { return static_cast<std::uint64_t>(Clock::now().time_since_epoch().count()); }
 
-int send(const Args& args, dds::Client& client, const std::string& pipeline, ControlRequest request) {
+/// How much longer than --timeout a reply may take: the shadow period of a swap, at the rate
+/// `ask` (a status request over the command's own route) reports; 10 ms a cycle if it says
+/// none (a pipeline of an older version).
+milliseconds shadow_allowance(std::uint64_t shadow_cycles,
+                              const std::function<Expected<ControlReply>(const ControlRequest&)>& ask) {
+  if (shadow_cycles == 0) return milliseconds(0);
+  ControlRequest status;
+  status.kind = "status";
+  status.id = new_request_id();
+  double rate_hz = 0.0;
+  if (auto reply = ask(status); reply && reply->ok) rate_hz = std::strtod(reply->value.c_str(), nullptr);
+  const double seconds = static_cast<double>(shadow_cycles) / (rate_hz > 0.0 ? rate_hz : 100.0);
+  return milliseconds(std::llround(seconds * 1e3)) + milliseconds(1000);
+}
+
+int send(const Args& args, dds::Client& client, const std::string& pipeline, ControlRequest request,
+         std::uint64_t shadow_cycles) {
+  const milliseconds allowance = shadow_allowance(shadow_cycles, [&](const ControlRequest& status) {
+    return client.command(pipeline, status, reply_timeout(args));
+  });
   request.id = new_request_id();
-  auto reply = client.command(pipeline, request, reply_timeout(args));
+  auto reply = client.command(pipeline, request, reply_timeout(args) + allowance);
   if (!reply) {
     std::fprintf(stderr, "lode: %s\n", reply.error().c_str());
     return kExitFault;
@@ -140,7 +159,11 @@ std::optional<std::string> find_local_socket(const std::optional<std::string>& p
   return std::nullopt;
 }
 
-int send_local(const std::string& role, const std::string& socket, ControlRequest request, const Args& args) {
+int send_local(const std::string& role, const std::string& socket, ControlRequest request, const Args& args,
+               std::uint64_t shadow_cycles) {
+  const milliseconds allowance = shadow_allowance(shadow_cycles, [&](const ControlRequest& status) {
+    return local_send(socket, status, reply_timeout(args));
+  });
   request.id = new_request_id();
   if (request.kind == "record_start" && !request.name.empty() && request.name[0] != '/') {
     // Same host: a relative file means relative to the caller, not to the runner's cwd.
@@ -150,7 +173,7 @@ int send_local(const std::string& role, const std::string& socket, ControlReques
   char host[256] = "host";
   gethostname(host, sizeof host - 1);
   request.client = "lode-" + role + "-" + std::to_string(getpid()) + "@" + host;
-  auto reply = local_send(socket, request, reply_timeout(args));
+  auto reply = local_send(socket, request, reply_timeout(args) + allowance);
   if (!reply) {
     std::fprintf(stderr, "lode: %s\n", reply.error().c_str());
     return kExitFault;
@@ -209,7 +232,8 @@ std::string format_scaled(double v, const std::string& unit) {
 }
 
 int send_command(const Args& args, const std::string& role, std::string target,
-             const std::function<std::optional<ControlRequest>(const std::string&)>& make) {
+                 const std::function<std::optional<ControlRequest>(const std::string&)>& make,
+                 std::uint64_t shadow_cycles) {
   const bool force_local = args.has_flag("--local");
   const bool force_dds = args.has_flag("--dds");
   if (force_local && force_dds) {
@@ -239,7 +263,7 @@ int send_command(const Args& args, const std::string& role, std::string target,
     socket = find_local_socket(pipeline, force_local, wait, refusal);
     if (refusal != 0) return refusal;
   }
-  if (socket) return send_local(role, *socket, *request, args);
+  if (socket) return send_local(role, *socket, *request, args, shadow_cycles);
   auto client = make_client(args, role);
   if (!client) return kExitConfig;
   // Until one is heard of on DDS, a pipeline that comes up on this host meanwhile (one just
@@ -256,11 +280,11 @@ int send_command(const Args& args, const std::string& role, std::string target,
   if (refusal != 0) return refusal;
   if (late) {
     client.reset();
-    return send_local(role, *late, *request, args);
+    return send_local(role, *late, *request, args, shadow_cycles);
   }
   // None live, or several and none named: a command must never go to a guessed pipeline.
   if (!target_name) return not_found;
-  return send(args, *client, *target_name, *request);
+  return send(args, *client, *target_name, *request, shadow_cycles);
 }
 
 }  // namespace lode::cli

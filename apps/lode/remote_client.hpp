@@ -98,7 +98,10 @@ class StopWatch {
 ///   with neither, the one pipeline with a live local socket, else the one live on the DDS
 ///   domain (several: refused, naming them). `make` builds the request from the target
 ///   without its prefix; nullopt = usage error (already printed). Prints the reply.
+///   `shadow_cycles`: the swap runs its newcomer as a shadow that long before it replies, so
+///   the reply is awaited that much longer (at the rate the pipeline's status gives).
 int send_command(const Args& args, const std::string& role, std::string target,
-                 const std::function<std::optional<ControlRequest>(const std::string&)>& make);
+                 const std::function<std::optional<ControlRequest>(const std::string&)>& make,
+                 std::uint64_t shadow_cycles = 0);
 
 }  // namespace lode::cli

@@ -89,7 +89,9 @@ Expected<std::unique_ptr<RunServices>> RunServices::start(Pipeline& pipeline, Sc
   scheduler.add_hook(im.hot_swap.get());
   im.control = std::make_unique<ControlService>(pipeline, events);
   scheduler.add_hook(im.control.get());
-  im.control->set_swap_handler([hs = im.hot_swap.get()](const ControlRequest& r) { return hs->handle(r); });
+  im.control->set_swap_handler([hs = im.hot_swap.get()](const ControlRequest& r, std::unique_lock<std::mutex>& commands) {
+    return hs->handle(r, &commands);
+  });
   im.digest = std::make_unique<OutputDigest>(pipeline.signals(), options.digest);
   scheduler.add_hook(im.digest.get());
   im.recorder = std::make_unique<RunRecorder>(pipeline, scheduler, events, *im.digest);

@@ -19,6 +19,7 @@ int swap(const Args& args) {
     return kExitConfig;
   }
   const std::string target = promote ? args.option("--promote") : args.positional[0];
+  const auto shadow_cycles = static_cast<std::uint64_t>(args.integer("--shadow-cycles", 0));
   return send_command(args, "swap", target, [&](const std::string& t) -> std::optional<ControlRequest> {
     if (promote) {
       ControlRequest r = promote_command(t);
@@ -32,7 +33,7 @@ int swap(const Args& args) {
     if (args.has("--shadow-cycles")) s.shadow_cycles = static_cast<std::uint32_t>(args.integer("--shadow-cycles", 0));
     s.warm_start = !args.has_flag("--cold");
     return swap_command(s);
-  });
+  }, promote ? 0 : shadow_cycles);
 }
 
 }  // namespace

@@ -188,10 +188,13 @@ ControlReply ControlService::exchange(const ControlRequest& r, const Entry& e, s
 }
 
 ControlReply ControlService::handle(const ControlRequest& r, std::chrono::milliseconds timeout) {
-  std::lock_guard lock(mutex_);
+  std::unique_lock lock(mutex_);
   if (r.kind == "swap" || r.kind == "promote") {
     if (!swap_handler_) return fail(r, r.kind + ": this pipeline runner has no hot-swap service");
-    auto reply = swap_handler_(r);
+    // The handler lets go of the lock while a newcomer runs as a shadow (which may last
+    // minutes), so other commands are served meanwhile; it holds it again to finish.
+    auto reply = swap_handler_(r, lock);
+    if (!lock.owns_lock()) lock.lock();
     refresh();
     return reply;
   }
@@ -206,6 +209,7 @@ ControlReply ControlService::handle(const ControlRequest& r, std::chrono::millis
     reply.ok = true;
     reply.message = "pipeline '" + pipeline_.name() + "' at " + format_number(pipeline_.rate_hz()) + " Hz, " +
                     (running_.load() ? "running" : "not running");
+    reply.value = format_number(pipeline_.rate_hz());  // for clients: `lode swap --shadow-cycles` times its wait by it
     return reply;
   }
   if (r.kind == "list") {

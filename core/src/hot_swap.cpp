@@ -254,7 +254,20 @@ SwapReport HotSwap::finish(PreparedPtr prepared) {
   return report;
 }
 
-SwapReport HotSwap::wait_and_finish(PreparedPtr prepared, std::chrono::milliseconds timeout) {
+SwapReport HotSwap::wait_and_finish(PreparedPtr prepared, std::chrono::milliseconds timeout,
+                                    std::unique_lock<std::mutex>* released_while_shadowing) {
+  // Held again on every way out, before anything the caller's lock guards is touched.
+  struct Reacquire {
+    std::unique_lock<std::mutex>* lock;
+    std::atomic<bool>& shadowing;
+    void operator()() const {
+      if (lock != nullptr && !lock->owns_lock()) {
+        lock->lock();
+        shadowing.store(false, std::memory_order_release);
+      }
+    }
+    ~Reacquire() { (*this)(); }
+  } reacquire{released_while_shadowing, shadowing_};
   if (!running_.load(std::memory_order_acquire)) {
     // No RT thread: this thread owns the blocks. Same code path, at "cycle 0".
     post(*prepared);
@@ -271,9 +284,17 @@ SwapReport HotSwap::wait_and_finish(PreparedPtr prepared, std::chrono::milliseco
                         std::chrono::milliseconds(static_cast<std::int64_t>(
                             1e3 * prepared->shadow_cycles / pipeline_.rate_hz()));
   while (!done()) {
+    // The shadow period: nothing to do here but wait, so the caller's commands go on.
+    if (released_while_shadowing != nullptr && released_while_shadowing->owns_lock() &&
+        state_.load(std::memory_order_acquire) == kWarming) {
+      shadowing_block_ = prepared->report.block;
+      shadowing_.store(true, std::memory_order_release);
+      released_while_shadowing->unlock();
+    }
     const bool stopped = !running_.load(std::memory_order_acquire);
     if (stopped || std::chrono::steady_clock::now() > deadline) {
       int posted = kPosted, prefetched = kPrefetched;
+      reacquire();
       if (state_.compare_exchange_strong(posted, kIdle, std::memory_order_acq_rel) ||
           state_.compare_exchange_strong(prefetched, kIdle, std::memory_order_acq_rel)) {
         SwapReport r = std::move(prepared->report);
@@ -303,10 +324,12 @@ SwapReport HotSwap::wait_and_finish(PreparedPtr prepared, std::chrono::milliseco
     }
     std::this_thread::sleep_for(std::chrono::microseconds(100));
   }
+  reacquire();
   return finish(std::move(prepared));
 }
 
-SwapReport HotSwap::swap(const SwapRequest& request, std::chrono::milliseconds timeout) {
+SwapReport HotSwap::swap(const SwapRequest& request, std::chrono::milliseconds timeout,
+                         std::unique_lock<std::mutex>* released_while_shadowing) {
   std::lock_guard lock(mutex_);
   // Off the RT thread, on the command path: whatever a plugin or a parameter text throws
   // while the newcomer is prepared is a refusal, never an exception out of the command
@@ -330,7 +353,7 @@ SwapReport HotSwap::swap(const SwapRequest& request, std::chrono::milliseconds t
     events_.post_limited(time_ns, cycle, "command_failed", r.message + (request.client.empty() ? "" : " (by " + request.client + ")"));
     return r;
   }
-  return wait_and_finish(std::move(*prepared), timeout);
+  return wait_and_finish(std::move(*prepared), timeout, released_while_shadowing);
 }
 
 SwapReport HotSwap::promote(const std::string& shadow, std::chrono::milliseconds timeout) {
@@ -381,9 +404,17 @@ ControlRequest promote_command(const std::string& shadow) {
   return r;
 }
 
-ControlReply HotSwap::handle(const ControlRequest& request) {
+ControlReply HotSwap::handle(const ControlRequest& request, std::unique_lock<std::mutex>* commands) {
   ControlReply reply;
   reply.id = request.id;
+  if (shadowing_.load(std::memory_order_acquire)) {
+    // An earlier swap waits, without the command lock, for its shadow period to end: this
+    // one would wait for it here while holding that lock, which the earlier one needs back.
+    reply.ok = false;
+    reply.message = "swap: the newcomer for " + shadowing_block_ +
+                    " still runs as a shadow (an earlier `lode swap --shadow-cycles`); try again once it has taken over";
+    return reply;
+  }
   SwapReport report;
   if (request.kind == "promote" || request.value == "promote") {
     report = promote(request.kind == "promote" && !request.block.empty() ? request.block : request.name);
@@ -398,7 +429,7 @@ ControlReply HotSwap::handle(const ControlRequest& request) {
       reply.message = "swap " + request.block + ": " + st.message();
       return reply;
     }
-    report = swap(s);
+    report = swap(s, std::chrono::milliseconds(5000), commands);
   }
   reply.ok = report.ok;
   reply.message = report.message;

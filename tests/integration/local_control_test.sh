@@ -226,6 +226,29 @@ EOF
     echo "ok: --wait: no false error"
   fi
   kill -INT "$RUNNER_PID"; wait "$RUNNER_PID"; RUNNER_PID=
+  # A swap whose newcomer runs as a shadow for 7 s (longer than the 5 s default --timeout):
+  # `lode swap` waits for it, and meanwhile the pipeline answers other commands at once (a set
+  # used to wait behind the swap and time out); a second swap is refused while the shadow runs.
+  "$LODE" run "$CONFIG" --clock real --duration 30 --no-telemetry --quiet >"$TMP/shadow.log" 2>&1 &
+  RUNNER_PID=$!
+  wait_for_socket "$TMP/shadow.log" || fail=1
+  HYBRID='{d: 0.9, q: [1.0e3, 1.0e3, 1.0e5, 1.0e9, 1.0e9, 1.0e9], r: 1.0e-6, hinf_theta: [8.0e5, 8.0e5, 8.0e5, 5.0e5, 5.0e5, 5.0e5], hinf_error_weight: [1, 0, 0], output: filtered}'
+  "$LODE" swap observer estimator.hybrid_h2hinf --params "$HYBRID" --shadow-cycles 5600 >"$TMP/shadow_swap.out" 2>&1 &
+  swapper=$!
+  sleep 1.5
+  started=$EPOCHREALTIME
+  "$LODE" set observer.d >"$TMP/shadow_get.out" 2>&1
+  check "shadow swap: a get while the shadow runs" 0 $?
+  took=$(awk -v a="$started" -v b="$EPOCHREALTIME" 'BEGIN { printf "%.1f", b - a }')
+  awk -v t="$took" 'BEGIN { exit !(t < 3) }' && echo "ok: shadow swap: the get was answered after $took s" \
+    || { echo "FAIL: shadow swap: the get waited $took s behind the swap"; fail=1; }
+  "$LODE" swap observer estimator.hybrid_h2hinf --params "$HYBRID" >"$TMP/shadow_second.out" 2>&1
+  check "shadow swap: a second swap meanwhile is refused" 1 $?
+  contains "shadow swap: ... saying why" "$TMP/shadow_second.out" "^error: swap: the newcomer for observer still runs as a shadow"
+  wait "$swapper"; check "shadow swap: lode swap waits out the shadow period" 0 $?
+  show "$TMP/shadow_swap.out"
+  contains "shadow swap: ... and reports the swap" "$TMP/shadow_swap.out" "^ok: swapped observer: estimator.hybrid_h2hinf -> estimator.hybrid_h2hinf at cycle"
+  kill -INT "$RUNNER_PID"; wait "$RUNNER_PID"; RUNNER_PID=
   # --no-local-control: no socket at all.
   "$LODE" run "$CONFIG" --clock real --duration 1.5 --no-telemetry --no-local-control --quiet >"$TMP/nolocal.log" 2>&1 &
   RUNNER_PID=$!

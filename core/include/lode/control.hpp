@@ -45,6 +45,10 @@ struct ControlReply {
 class ControlService final : public CycleHook {
  public:
   using Handler = std::function<ControlReply(const ControlRequest&)>;
+  /// A swap handler is given the lock that serialises commands: it may release it while it
+  /// waits for something that takes long (a shadow period) and must not touch anything
+  /// handle() guards until it holds it again (handle() takes it back if it was left unlocked).
+  using SwapHandler = std::function<ControlReply(const ControlRequest&, std::unique_lock<std::mutex>& commands)>;
 
   ControlService(Pipeline& pipeline, EventLog& events);
 
@@ -61,7 +65,7 @@ class ControlService final : public CycleHook {
 
   /// Swap and recording are implemented elsewhere (hot-swap, recorder); without a handler
   /// those commands are answered with an error that says so.
-  void set_swap_handler(Handler h) { swap_handler_ = std::move(h); }
+  void set_swap_handler(SwapHandler h) { swap_handler_ = std::move(h); }
   void set_record_handler(Handler h) { record_handler_ = std::move(h); }
 
   /// Parses "0.3", "1e-3", "true", "off", ... Empty optional + message on error.
@@ -84,7 +88,7 @@ class ControlService final : public CycleHook {
   EventLog& events_;
   std::vector<Entry> entries_;
   std::mutex mutex_;  ///< serialises handle(); never touched by the RT thread
-  Handler swap_handler_;
+  SwapHandler swap_handler_;
   Handler record_handler_;
   std::atomic<bool> running_{false};
 

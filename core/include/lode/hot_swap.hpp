@@ -87,15 +87,19 @@ class HotSwap final : public CycleHook {
   void set_running(bool running) { running_.store(running, std::memory_order_release); }
 
   /// Off the RT thread; serialised. Prepare, hand over at a cycle boundary, wait, finish.
+  /// `released_while_shadowing` (a lock the caller holds) is unlocked while the newcomer runs
+  /// as a shadow and locked again before the swap finishes.
   SwapReport swap(const SwapRequest& request,
-                  std::chrono::milliseconds timeout = std::chrono::milliseconds(5000));
+                  std::chrono::milliseconds timeout = std::chrono::milliseconds(5000),
+                  std::unique_lock<std::mutex>* released_while_shadowing = nullptr);
   /// Exchange the instances of `shadow`'s role and its primary's at a cycle boundary (both
   /// keep running: the old primary becomes the shadow). Re-arms the health fallback.
   SwapReport promote(const std::string& shadow,
                      std::chrono::milliseconds timeout = std::chrono::milliseconds(2000));
   /// ControlService swap handler: kind "swap" (value "promote" + name = shadow promotes;
-  /// name may carry "shadow_cycles=N") and kind "promote".
-  ControlReply handle(const ControlRequest& request);
+  /// name may carry "shadow_cycles=N") and kind "promote". `commands`: the command lock,
+  /// released during a shadow period (ControlService::SwapHandler).
+  ControlReply handle(const ControlRequest& request, std::unique_lock<std::mutex>* commands = nullptr);
 
   /// Off the RT thread: post the health monitor's trips (and swaps it caused) as events.
   /// Returns how many were posted. Call from the runner's idle loop.
@@ -127,7 +131,8 @@ class HotSwap final : public CycleHook {
   [[nodiscard]] const std::vector<std::uint64_t>& swap_cycles() const { return swap_cycles_; }
 
  private:
-  SwapReport wait_and_finish(PreparedPtr prepared, std::chrono::milliseconds timeout);
+  SwapReport wait_and_finish(PreparedPtr prepared, std::chrono::milliseconds timeout,
+                             std::unique_lock<std::mutex>* released_while_shadowing = nullptr);
   static void prefetch(Prepared& p) noexcept;
   /// RT thread: the newcomer takes the role from `boundary` on.
   void install(Prepared& p, const Tick& boundary, std::int64_t t0) noexcept;
@@ -136,6 +141,10 @@ class HotSwap final : public CycleHook {
   pipeline_detail::Roles& roles_;  ///< all a swap changes, it changes through this
   EventLog& events_;
   std::mutex mutex_;  ///< serialises swaps; never touched by the RT thread
+  /// A swap is in its shadow period with the caller's command lock released (handle());
+  /// shadowing_block_ is written before it is set, under that lock.
+  std::atomic<bool> shadowing_{false};
+  std::string shadowing_block_;
   std::atomic<bool> running_{false};
   Histogram rt_cost_;
   std::uint64_t swaps_ = 0;
