@@ -61,6 +61,7 @@ struct RunAnalysis::Streams {
   std::optional<WindowAccumulator> hold_truth, hold_estimate, estimation_error, tracking;
   std::vector<WindowAccumulator> extra_hold;
   std::vector<std::optional<WindowAccumulator>> extra_error;
+  std::vector<bool> extra_is_estimate;
   std::optional<StepResponseTracker> steps;
   bool noise_floor_set = false;
 };
@@ -96,10 +97,20 @@ RunAnalysis::RunAnalysis(const Pipeline& pipeline) : pipeline_(pipeline), stream
     // From the start of the hold window: the start-up transient is not an estimation error.
     st.estimation_error.emplace(width(estimate_), st.h0, kForever);
   }
+  // A shadow's `disagreement` (its estimate minus its primary's) and `nis` are not estimates
+  // of the truth: no error against it.
+  const auto shadows = pipeline.shadows();
+  const auto is_estimate = [&](const SignalRef& s) {
+    for (const auto& sh : shadows)
+      if (sh.name == s.block && (s.port == "disagreement" || s.port == "nis")) return false;
+    return true;
+  };
   for (const int index : extra_) {
     st.extra_hold.emplace_back(width(index), st.h0, st.h1);
     st.extra_error.emplace_back();
-    if (width(index) == width(truth_)) st.extra_error.back().emplace(width(index), st.h0, kForever);
+    st.extra_is_estimate.push_back(is_estimate(tapped[static_cast<std::size_t>(index)]));
+    if (width(index) == width(truth_) && st.extra_is_estimate.back())
+      st.extra_error.back().emplace(width(index), st.h0, kForever);
   }
   if (reference_ >= 0) {
     st.tracking.emplace(width(reference_), st.h0, kForever);
@@ -195,7 +206,8 @@ Json RunAnalysis::finish() {
     Json oj = Json::object();
     const auto hold = st.extra_hold[e].result();
     oj["hold_noise"] = stats_json(hold, el);
-    print_stats(out_, ("  as " + name + " reports it").c_str(), hold, el, true);
+    const std::string label = st.extra_is_estimate[e] ? "  as " + name + " reports it" : "  " + name + " std";
+    print_stats(out_, label.c_str(), hold, el, true);
     if (st.extra_error[e]) {
       const auto error = st.extra_error[e]->result();
       oj["error_vs_truth"] = stats_json(error, el);

@@ -74,6 +74,17 @@ for axis, rise_ms, overshoot, settle_ms in (("x", 24.5, 19.3, 163), ("theta_z", 
     near(axis + " settling ms", steps[axis]["settling_time_s"] * 1e3, settle_ms, 0.5)
 CHECK
 
+# A shadow's estimate is compared with the truth; its disagreement (shadow minus primary) is
+# not an estimate, and is not.
+"$LODE" run "$SRC/config/kawato_planar_swap.yaml" --duration 1 --quiet --no-telemetry --summary-json "$TMP/swap.json" >"$TMP/swap_run.out" 2>&1
+check_rc "run kawato_planar_swap" 0 $? "$TMP/swap_run.out"
+"$PY" - "$TMP/swap.json" <<'CHECK' && ok "a shadow's disagreement is not compared with the truth" || bad "shadow outputs in the summary"
+import json, sys
+recorded = json.load(open(sys.argv[1]))["recorded"]
+print("   ", {name: sorted(r) for name, r in recorded.items()})
+sys.exit(0 if "error_vs_truth" in recorded["kf_hybrid.pose"] and "error_vs_truth" not in recorded["kf_hybrid.disagreement"] else 1)
+CHECK
+
 # A runtime fault: an unstable controller drives the command to infinity; io.sim refuses
 # it, drives the outputs safe, and lode exits 1.
 sed '0,/- { zeros_s: .*gain: 4\.09e5, discretization: matched }/s//- { num_z: [1.0], den_z: [1.0, -3.0] }/' \
