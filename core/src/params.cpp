@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 
 #include "params_node.hpp"
@@ -80,6 +82,33 @@ std::string describe_node(const YAML::Node& n) {
   return "nothing";
 }
 
+/// "got '2mm'" and what to write instead: every number is in SI units, without one (the
+/// field's name says which: gap_m, mass_kg, rate_hz). The prefixes and units a lab writes.
+std::string number_got(const YAML::Node& n) {
+  std::string got = "got " + describe_node(n);
+  if (!n.IsScalar()) return got;
+  const std::string& text = n.Scalar();
+  char* end = nullptr;
+  const double value = std::strtod(text.c_str(), &end);
+  if (end == text.c_str() || !std::isfinite(value)) return got;
+  std::string unit(end);
+  unit.erase(0, unit.find_first_not_of(" \t"));
+  if (unit.empty()) return got;
+  static const std::pair<const char*, double> kScales[] = {
+      {"m", 1.0},     {"cm", 1e-2},   {"mm", 1e-3},   {"um", 1e-6},  {"µm", 1e-6},  {"nm", 1e-9},
+      {"kg", 1.0},    {"g", 1e-3},    {"s", 1.0},     {"ms", 1e-3},  {"us", 1e-6},  {"µs", 1e-6},
+      {"Hz", 1.0},    {"kHz", 1e3},   {"rad", 1.0},   {"mrad", 1e-3}, {"urad", 1e-6}, {"µrad", 1e-6},
+      {"deg", 3.14159265358979323846 / 180.0},        {"V", 1.0},    {"mV", 1e-3},  {"uV", 1e-6},
+      {"T", 1.0},     {"mT", 1e-3},   {"N", 1.0},     {"mN", 1e-3},  {"A", 1.0},    {"mA", 1e-3}};
+  for (const auto& [name, scale] : kScales) {
+    if (unit != name) continue;
+    char si[32];
+    std::snprintf(si, sizeof si, "%.6g", value * scale);
+    return got + " (numbers are in SI units, written without the unit: " + si + " for " + text + ")";
+  }
+  return got + " (numbers are in SI units, written without the unit)";
+}
+
 }  // namespace
 
 Params::Params() = default;
@@ -107,17 +136,21 @@ void Params::fail(std::string_view key, std::string message) {
   ++node_->tree->errors;
   detail::ParamsTree& tree = *node_->tree;
   std::string field = node_->path + "." + std::string(key);
-  if (tree.missing_fields.count(field) > 0 || !tree.reported.emplace(field, message).second) return;
+  if (tree.unusable_fields.count(field) > 0 || !tree.reported.emplace(field, message).second) return;
   tree.diagnostics->add(location(key), std::move(field), std::move(message));
 }
 
 namespace {
 
-/// A required field that is absent: reported, and marked so that what a plugin says of its
-/// defaulted value afterwards is not.
+/// A field that is absent or unreadable: reported, and marked so that what a plugin says of
+/// its stand-in value afterwards is not.
+void fail_unusable(Params& params, std::string_view key, std::string message) {
+  params.fail(key, std::move(message));
+  params.node()->tree->unusable_fields.insert(params.node()->path + "." + std::string(key));
+}
+
 void fail_missing(Params& params, std::string_view key, const char* what) {
-  params.fail(key, "missing required parameter '" + std::string(key) + "' (" + what + ")");
-  params.node()->tree->missing_fields.insert(params.node()->path + "." + std::string(key));
+  fail_unusable(params, key, "missing required parameter '" + std::string(key) + "' (" + what + ")");
 }
 
 }  // namespace
@@ -161,7 +194,7 @@ void element_error(ParamsNode& node, const std::string& key, std::size_t i, cons
   ++node.tree->errors;
   node.tree->diagnostics->add(location_of(element, node.tree->file),
                               node.path + "." + key + "[" + std::to_string(i) + "]",
-                              expected + ", got " + describe_node(element));
+                              expected + ", " + number_got(element));
 }
 
 /// Every element of `list` as a T, in order; one that is not a T is reported and read as T{},
@@ -192,7 +225,7 @@ double Params::number(std::string_view key) {
     return 0.0;
   }
   double v = 0.0;
-  if (!convert_scalar(n, v)) fail(key, "expected a finite number, got " + describe_node(n));
+  if (!convert_scalar(n, v)) fail_unusable(*this, key, "expected a finite number, " + number_got(n));
   return v;
 }
 
@@ -211,7 +244,7 @@ std::int64_t Params::integer(std::string_view key) {
     return 0;
   }
   std::int64_t v = 0;
-  if (!convert_scalar(n, v)) fail(key, "expected an integer, got " + describe_node(n));
+  if (!convert_scalar(n, v)) fail_unusable(*this, key, "expected an integer, " + number_got(n));
   return v;
 }
 
@@ -227,7 +260,7 @@ bool Params::flag(std::string_view key, bool fallback) {
   LODE_PARAM_LOOKUP(key);
   if (!n.IsDefined() || n.IsNull()) return fallback;
   bool v = fallback;
-  if (!convert_scalar(n, v)) fail(key, "expected true or false, got " + describe_node(n));
+  if (!convert_scalar(n, v)) fail_unusable(*this, key, "expected true or false, got " + describe_node(n));
   return v;
 }
 
@@ -284,7 +317,7 @@ std::vector<double> Params::numbers(std::string_view key, std::optional<std::siz
   }
   if (n.IsScalar() && size.value_or(1) == 1) {
     double v = 0.0;
-    if (!convert_scalar(n, v)) fail(key, "expected a finite number, got " + describe_node(n));
+    if (!convert_scalar(n, v)) fail_unusable(*this, key, "expected a finite number, " + number_got(n));
     return {v};
   }
   if (!n.IsSequence()) {

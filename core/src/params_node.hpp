@@ -19,10 +19,10 @@ struct ParamsTree {
   Diagnostics* diagnostics = nullptr;  ///< where problems go (owned by the loader)
   std::string file;
   std::size_t errors = 0;
-  /// Required fields that are missing: what a plugin says of them afterwards is a consequence
-  /// (a missing `q` is then "expected 3 numbers, got 0", then "must be > 0" for each axis) and
-  /// is not reported.
-  std::set<std::string> missing_fields;
+  /// Fields already reported as missing or unreadable ("2 kg" where a number goes): what a
+  /// plugin says of their stand-in value afterwards is a consequence (a missing `q` is then
+  /// "expected 3 numbers, got 0", then "must be > 0" for each axis) and is not reported.
+  std::set<std::string> unusable_fields;
   /// Every (field, message) reported, so that the same problem is said once.
   std::set<std::pair<std::string, std::string>> reported;
   /// Every map node handed out, kept alive until report_unread_keys() so that maps a plugin

@@ -91,25 +91,38 @@ class LoaderContext final : public ConfigureContext {
   }
 
   std::unique_ptr<PlantModel> plant_model(std::string_view key) override {
-    return p_.make_model<PlantModel>(params_, key, "plant");
+    return noted(p_.make_model<PlantModel>(params_, key, "plant"));
   }
   std::unique_ptr<MeasurementModel> measurement_model(std::string_view key) override {
-    return p_.make_model<MeasurementModel>(params_, key, "sensor");
+    return noted(p_.make_model<MeasurementModel>(params_, key, "sensor"));
   }
   std::unique_ptr<ProcessModel> process_model(std::string_view key) override {
-    return p_.make_model<ProcessModel>(params_, key, "process");
+    return noted(p_.make_model<ProcessModel>(params_, key, "process"));
   }
   std::vector<std::unique_ptr<MeasurementModel>> measurement_models(std::string_view key) override {
     std::vector<std::unique_ptr<MeasurementModel>> out;
     for (const auto& name : params_.texts(key, {})) {
-      auto m = p_.make_model_named<MeasurementModel>(params_, key, name, "sensor");
+      auto m = noted(p_.make_model_named<MeasurementModel>(params_, key, name, "sensor"));
       if (m) out.push_back(std::move(m));
     }
     if (!params_.has(key)) params_.fail(key, "missing required parameter (a list of model names)");
     return out;
   }
 
+  /// Whether the block asked for a model that failed on its own (its plugin did not load, or
+  /// its configuration was refused): reported there, so the block's "model not available"
+  /// is a consequence.
+  [[nodiscard]] bool asked_for_failed_model() const { return asked_for_failed_model_; }
+
  private:
+  /// No model, and nothing said against this block's parameters: the model itself failed.
+  template <typename M>
+  std::unique_ptr<M> noted(std::unique_ptr<M> model) {
+    if (!model && params_.ok()) asked_for_failed_model_ = true;
+    return model;
+  }
+  bool asked_for_failed_model_ = false;
+
   /// The port table is the one declaration of a plugin's ports: a port it does not list, or
   /// lists the other way round, is a bug in the plugin, reported as one.
   bool listed(const std::string& name, PortDirection direction) {
@@ -260,7 +273,8 @@ void Pipeline::Impl::configure_block(BlockEntry& e) {
   if (st) check_unconditional_ports(e, params);
   detail::report_unread_keys(params);
   check_documented(e.plugin, params, path);
-  if (!st && params.ok()) error(e.where, path, st.message());
+  // A block refused for want of a model that failed is said at the model, once.
+  if (!st && params.ok() && !ctx.asked_for_failed_model()) error(e.where, path, st.message());
   e.configured = true;
 }
 

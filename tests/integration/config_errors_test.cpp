@@ -225,6 +225,17 @@ TEST(ConfigErrorsEchoes, OneMistakeIsOneProblem) {
        "blocks.ctrl.output_units: one SI unit per axis is required"},
       {"a rate with its unit", replace(kValid, "rate_hz: 800", "rate_hz: 800 Hz"),
        "rate_hz must be a number in (0, 100000], got '800 Hz' (the blocks are checked once it is valid"},
+      // The mass is then not "must be > 0 kg, got 0", and the board that needs the plant is not
+      // "plant model 'platen' is not available": both follow from the one mistake.
+      {"a model's number with its unit", replace(kValid, "platen: {plugin: plant.planar_stage}",
+                                                 "platen: {plugin: plant.planar_stage, mass_kg: 6.2 kg}"),
+       "models.platen.mass_kg: expected a finite number, got '6.2 kg' (numbers are in SI units, written without "
+       "the unit: 6.2 for 6.2 kg)"},
+      {"a sensor position in millimetres", replace(kValid, "x_m: 0.00635, y_m: 0.09525", "x_m: 6.35mm, y_m: 0.09525"),
+       "expected a finite number, got '6.35mm' (numbers are in SI units, written without the unit: 0.00635 for 6.35mm)"},
+      {"a list element with its unit", replace(kValid, "value: [1.0e-4, 0.0, 0.0]", "value: [100 um, 0.0, 0.0]"),
+       "value[0]: expected a finite number, got '100 um' (numbers are in SI units, written without the unit: 0.0001 "
+       "for 100 um)"},
   };
   for (const auto& m : mistakes) {
     lode::PluginRegistry registry;
