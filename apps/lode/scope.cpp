@@ -5,6 +5,8 @@
 //
 // scope_feed turns the DDS subscriptions into batched Server-Sent Events, scope_commands
 // sends the page's commands as lode set / lode swap would, scope_server serves it all.
+#include <unistd.h>
+
 #include <cmath>
 #include <cstdio>
 #include <thread>
@@ -53,10 +55,21 @@ int scope_main(const Args& args) {
     std::fprintf(stderr, "lode: scope: %s\n", port.error().c_str());
     return kExitFault;
   }
-  const bool v6 = server_options.host.find(':') != std::string::npos;
-  const std::string address = (v6 ? "[" + server_options.host + "]" : server_options.host) + ":" + std::to_string(*port);
-  std::printf("lode scope: http://%s/%s\n", address.c_str(),
-              server_options.token.empty() ? "" : ("?token=" + server_options.token).c_str());
+  const std::string query = server_options.token.empty() ? "" : "?token=" + server_options.token;
+  const std::string& host = server_options.host;
+  if (host == "0.0.0.0" || host == "::") {
+    // Every interface: 0.0.0.0 is where it listens, not an address a browser can go to. Say
+    // this machine's name, and the address that reaches it from here.
+    char name[256] = "HOST";
+    gethostname(name, sizeof name - 1);
+    const std::string loopback = host == "::" ? "[::1]" : "127.0.0.1";
+    std::printf("lode scope: http://%s:%d/%s\n", name, *port, query.c_str());
+    std::printf("lode scope: listening on every interface (%s); from this machine: http://%s:%d/%s\n", host.c_str(),
+                loopback.c_str(), *port, query.c_str());
+  } else {
+    const bool v6 = host.find(':') != std::string::npos;
+    std::printf("lode scope: http://%s:%d/%s\n", (v6 ? "[" + host + "]" : host).c_str(), *port, query.c_str());
+  }
   std::fflush(stdout);
 
   install_stop_handlers();
