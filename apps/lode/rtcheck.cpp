@@ -110,7 +110,7 @@ Command rtcheck_command() {
             d.positional("CONFIG", "the pipeline to check the host for (default: the host in general)", 0, 1);
             d.flag("--json", "print the checks (and latency) as JSON");
             d.text("--latency", "DURATION",
-                   "also measure wake-up latency on the pipeline's CPU and priority for DURATION (10s, 500ms, 2m)");
+                   "also measure wake-up latency on the pipeline's CPU and priority for DURATION (10s, 500ms, 2m, 8h)");
           },
           rtcheck};
 }

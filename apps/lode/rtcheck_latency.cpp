@@ -80,7 +80,7 @@ std::string edge_label(std::size_t i) {
 }  // namespace
 
 std::optional<std::int64_t> parse_duration_ns(const std::string& text, std::string& why) {
-  why = "'" + text + "' is not a duration: write 10s, 500ms, 2m or a number of seconds";
+  why = "'" + text + "' is not a duration: write 10s, 500ms, 2m, 8h or a number of seconds";
   std::size_t digits = 0;
   while (digits < text.size() && (std::isdigit(static_cast<unsigned char>(text[digits])) || text[digits] == '.')) ++digits;
   const std::string number = text.substr(0, digits), unit = text.substr(digits);
@@ -91,6 +91,7 @@ std::optional<std::int64_t> parse_duration_ns(const std::string& text, std::stri
   if (unit.empty() || unit == "s") scale = 1e9;
   else if (unit == "ms") scale = 1e6;
   else if (unit == "m") scale = 60e9;
+  else if (unit == "h") scale = 3600e9;  // an overnight soak is the usual way to find the rare latency
   else return std::nullopt;
   const double ns = value * scale;
   if (!std::isfinite(ns) || ns < 1e6 || ns > static_cast<double>(kMaxDurationNs)) {

@@ -338,6 +338,7 @@ TEST(RtcheckLatency, Durations) {
   EXPECT_EQ(parse_duration_ns("500ms", why), 500'000'000);
   EXPECT_EQ(parse_duration_ns("2m", why), 120'000'000'000);
   EXPECT_EQ(parse_duration_ns("1.5", why), 1'500'000'000);
+  EXPECT_EQ(parse_duration_ns("8h", why), 8 * 3'600'000'000'000);
   for (const char* bad : {"", "s", "10x", "-1s", "1e3", "0", "25h", "90000", "10 s"}) {
     EXPECT_FALSE(parse_duration_ns(bad, why)) << bad;
     EXPECT_NE(why.find(bad), std::string::npos) << why;
