@@ -44,6 +44,25 @@ constexpr const char* kUsage =
     "usage: lode-can-emu BOARD.yaml --sim SIM.yaml [--block NAME] [--interface IF]\n"
     "                    [--fault heartbeat_lost|malformed_pdo|bus_off|emergency|silent --fault-after-syncs N]\n"
     "                    [--heartbeat-ms MS] [--sync-watchdog-ms MS]\n";
+constexpr const char* kHelp =
+    "\n"
+    "Plays the CANopen DAQ module of an io.socketcan_daq block on a CAN interface, its analog\n"
+    "inputs (TPDOs) driven by the io.sim block of SIM.yaml (plant, sensors, noise) and its analog\n"
+    "outputs (RPDOs) driving that plant: a closed loop over CAN frames without the module. Start\n"
+    "it before `lode run BOARD.yaml`; stop it with Ctrl-C (it prints what it served).\n"
+    "\n"
+    "  BOARD.yaml            the pipeline with the io.socketcan_daq block (node id, PDOs, interface)\n"
+    "  --sim SIM.yaml        a pipeline with an io.sim block of the same name: its signals are the\n"
+    "                        TPDO entries, its command the RPDO entries, in order\n"
+    "  --block NAME          which block of both files (default: the first io.socketcan_daq one)\n"
+    "  --interface IF        the CAN interface (default: the block's, e.g. vcan0)\n"
+    "  --fault KIND          a module fault after --fault-after-syncs N SYNCs: heartbeat_lost,\n"
+    "                        malformed_pdo, bus_off, emergency or silent\n"
+    "  --heartbeat-ms MS     heartbeat period (default 20)\n"
+    "  --sync-watchdog-ms MS no SYNC for that long: outputs to their safe values, pre-operational\n"
+    "                        (default 100, 0 off), as a module whose master died does\n"
+    "\n"
+    "exit codes: 0 stopped, 2 configuration error. See docs/hardware.md.\n";
 std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop.store(true); }
 
@@ -103,7 +122,7 @@ int main(int argc, char** argv) {
     else if (a == "--heartbeat-ms" && has_value) heartbeat_ms = std::atoi(argv[++i]);
     else if (a == "--sync-watchdog-ms" && has_value) watchdog_ms = std::atoi(argv[++i]);
     else if (a == "-h" || a == "--help") {
-      std::printf("%s", kUsage);
+      std::printf("%s%s", kUsage, kHelp);
       return 0;
     } else if (board_file.empty() && a[0] != '-') board_file = a;
     else {

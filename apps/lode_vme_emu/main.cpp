@@ -92,7 +92,21 @@ int main(int argc, char** argv) {
     else if (a == "--block" && i + 1 < argc) block = argv[++i];
     else if (a == "--spin") spin = true;
     else if (a == "-h" || a == "--help") {
-      std::printf("usage: lode-vme-emu BOARD.yaml --sim SIM.yaml [--block NAME] [--spin]\n");
+      std::printf(
+          "usage: lode-vme-emu BOARD.yaml --sim SIM.yaml [--block NAME] [--spin]\n"
+          "\n"
+          "Plays the Pentek-like VME board pair of an io.vme_pentek block on its register window (a\n"
+          "shared file), the ADC inputs driven by the io.sim block of SIM.yaml (plant, sensors, noise)\n"
+          "and the DAC outputs driving that plant: a closed loop over the register interface without\n"
+          "the hardware. Start it before `lode run BOARD.yaml`; stop it with Ctrl-C.\n"
+          "\n"
+          "  BOARD.yaml     the pipeline with the io.vme_pentek block (window, register map, channels)\n"
+          "  --sim SIM.yaml a pipeline with an io.sim block of the same name: its signals are the ADC\n"
+          "                 channels, its command the DAC channels, in order, same names and units\n"
+          "  --block NAME   which block of both files (default: the first io.vme_pentek one)\n"
+          "  --spin         poll the trigger register without sleeping (pin it to a CPU of its own)\n"
+          "\n"
+          "exit codes: 0 stopped, 2 configuration error. See docs/hardware.md.\n");
       return 0;
     } else if (board_file.empty() && a[0] != '-') board_file = a;
     else {
