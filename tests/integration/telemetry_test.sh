@@ -103,6 +103,25 @@ commands)
   swapped_d=$("$L" set "$param" "${D[@]}" --name console 2>&1 | sed -n 's/^ok: .* = \([^ ]*\).*/\1/p')
   [ "$swapped_d" = "0.25" ] && ok "the swapped-in instance runs (observer.d = 0.25)" \
     || bad "after the swap observer.d reads '$swapped_d', expected 0.25 from the newcomer"
+  # A swap with a 7 s shadow period over DDS (longer than --timeout): lode swap waits it out,
+  # and a set over DDS meanwhile is answered at once, not after the swap.
+  "$L" swap observer estimator.hybrid_h2hinf --params "$SWAP_PARAMS" --shadow-cycles 5600 "${D[@]}" --name console \
+    >"$TMP/shadow_swap.out" 2>&1 &
+  SWAPPER=$!
+  sleep 3  # the swap has reached the pipeline: discovery took part of it
+  started=$EPOCHREALTIME
+  "$L" set "$param" --pipeline maglev6_hybrid "${D[@]}" --name console >"$TMP/shadow_get.out" 2>&1; check_rc "a get over DDS during the shadow period" 0 $?
+  took=$(awk -v a="$started" -v b="$EPOCHREALTIME" 'BEGIN { printf "%.1f", b - a }')
+  grep -q "^ok: .*still runs as a shadow\|^ok: $param = " "$TMP/shadow_get.out" && ok "the get was answered" || bad "get: $(cat "$TMP/shadow_get.out")"
+  "$L" swap observer estimator.hybrid_h2hinf --params "$SWAP_PARAMS" "${D[@]}" --name console >"$TMP/shadow_second.out" 2>&1
+  check_rc "a second swap over DDS during the shadow period is refused" 1 $?
+  contains "... saying why" "$TMP/shadow_second.out" "^error: swap: the newcomer for observer still runs as a shadow"
+  wait "$SWAPPER"; check_rc "lode swap --shadow-cycles over DDS waits out the shadow period" 0 $? "$TMP/shadow_swap.out"
+  contains "... and reports the swap" "$TMP/shadow_swap.out" "^ok: swapped observer: "
+  # The get's own time includes this client's discovery of the pipeline (about a second); behind
+  # the swap it would have waited for the rest of the 7 s shadow period.
+  awk -v t="$took" 'BEGIN { exit !(t < 4) }' && ok "the get took $took s, not the shadow period" \
+    || bad "the get took $took s: it waited behind the swap"
   "$L" record --remote-start "$TMP/remote.h5" "${D[@]}" --name console >"$TMP/rs.out" 2>&1; check_rc "remote record start" 0 $?
   sleep 1
   "$L" record --remote-stop "${D[@]}" --name console >"$TMP/rt.out" 2>&1; check_rc "remote record stop" 0 $?
