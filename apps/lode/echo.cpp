@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "commands.hpp"
+#include "lode/sdk/histogram.hpp"
 #include "remote_client.hpp"
 #include "sample_continuity.hpp"
 
@@ -35,8 +36,12 @@ int echo(const Args& args) {
   // --latency: capture on the RT thread -> taken by this process (same host: one clock).
   const bool latency = args.has_flag("--latency");
   const bool quiet = args.has_flag("--quiet");
+  // Exact quantiles from the first kExactLatencies samples (8 MB); past them, a fixed-size
+  // histogram (within 3 %) that has seen every sample, so an overnight echo stays bounded.
+  constexpr std::size_t kExactLatencies = 1 << 20;
   std::vector<double> latencies_us;
-  if (latency) latencies_us.reserve(1 << 20);
+  lode::Histogram latency_histogram;
+  if (latency) latencies_us.reserve(kExactLatencies);
   std::string followed;  // the pipeline of the topic echoed
   bool warned_namesakes = false;
 
@@ -115,7 +120,11 @@ int echo(const Args& args) {
       if (!first_cycle) first_cycle = s.cycle;
       if (!last_cycle || s.cycle > *last_cycle) last_cycle = s.cycle;
       ++received;
-      if (latency) latencies_us.push_back(static_cast<double>(s.received_ns - s.captured_ns) * 1e-3);
+      if (latency) {
+        const std::int64_t delay_ns = s.received_ns - s.captured_ns;
+        latency_histogram.record(std::max<std::int64_t>(delay_ns, 0));
+        if (latencies_us.size() < kExactLatencies) latencies_us.push_back(static_cast<double>(delay_ns) * 1e-3);
+      }
       if (quiet) {
       } else if (table) {
         if (Clock::now() - last_table > milliseconds(100)) {
@@ -166,7 +175,13 @@ int echo(const Args& args) {
     std::fprintf(stderr, "lode echo: %llu samples (%s)\n", static_cast<unsigned long long>(received), why.c_str());
   report_malformed(*client, "echo");
   if (!warned_namesakes && !followed.empty()) warn_namesakes(*client, followed, "echo");
-  if (latency && !latencies_us.empty()) {
+  if (latency && latency_histogram.count() > latencies_us.size()) {
+    const auto q = [&](double p) { return static_cast<double>(latency_histogram.percentile(p)) * 1e-3; };
+    std::fprintf(stderr, "lode echo: latency RT capture -> received (us): p50 %.1f  p90 %.1f  p99 %.1f  p99.9 %.1f  max %.1f  "
+                         "(%llu samples, more than %zu: quantiles from a histogram, within 3 %%)\n",
+                 q(0.5), q(0.9), q(0.99), q(0.999), static_cast<double>(latency_histogram.max()) * 1e-3,
+                 static_cast<unsigned long long>(latency_histogram.count()), kExactLatencies);
+  } else if (latency && !latencies_us.empty()) {
     std::sort(latencies_us.begin(), latencies_us.end());
     auto q = [&](double p) { return latencies_us[static_cast<std::size_t>(p * static_cast<double>(latencies_us.size() - 1))]; };
     std::fprintf(stderr, "lode echo: latency RT capture -> received (us): p50 %.1f  p90 %.1f  p99 %.1f  p99.9 %.1f  max %.1f  (%zu samples)\n",
