@@ -209,15 +209,7 @@ inline Handle create_column(hid_t group, const std::string& name, hid_t file_typ
   if (fill != nullptr) H5Pset_fill_value(dcpl.get(), fill_type, fill);
   Handle lcpl = utf8_link_properties();
   Handle dapl(H5Pcreate(H5P_DATASET_ACCESS));
-  if (!cache) {
-    H5Pset_chunk_cache(dapl.get(), 0, 0, H5D_CHUNK_CACHE_W0_DEFAULT);
-  } else {
-    // Rows are only ever appended, so the one chunk being filled is all a cache can help with.
-    // HDF5's default (1 MB for every dataset) kept up to 64 finished chunks of each column: a
-    // recording of every signal grew `lode record` by about 90 MB in its first 20 minutes.
-    const std::size_t chunk_bytes = static_cast<std::size_t>(chunk_rows) * H5Tget_size(file_type);
-    H5Pset_chunk_cache(dapl.get(), 1, chunk_bytes, 1.0);
-  }
+  if (!cache) H5Pset_chunk_cache(dapl.get(), 0, 0, H5D_CHUNK_CACHE_W0_DEFAULT);
   return Handle(H5Dcreate2(group, name.c_str(), file_type, space.get(), lcpl.get(), dcpl.get(), dapl.get()));
 }
 
