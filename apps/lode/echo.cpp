@@ -164,8 +164,10 @@ int echo(const Args& args) {
   if (first_cycle) {
     // Echo follows no timing reports: a cycle never published is said as such, not as lost.
     std::string unsent;
+    if (continuity->writers() > 1)
+      unsent += ", from " + std::to_string(continuity->writers()) + " publishers (a pipeline restarted, or namesakes)";
     if (continuity->unsent() > 0)
-      unsent = ", " + std::to_string(continuity->unsent()) +
+      unsent += ", " + std::to_string(continuity->unsent()) +
                " never published (periods the loop skipped after overruns, or telemetry_dropped in `lode echo timing`)";
     std::fprintf(stderr, "lode echo: %llu samples, cycles %llu..%llu, %llu missing%s, %llu out of order (%s)\n",
                  static_cast<unsigned long long>(received), static_cast<unsigned long long>(*first_cycle),

@@ -19,6 +19,7 @@ void SampleContinuity::add(std::uint64_t writer, std::uint64_t sequence, std::ui
   if (it == writers_.end()) {
     if (writers_.size() == kMaxWriters) writers_.erase(writers_.begin());
     writers_.push_back({writer, sequence, cycle});
+    ++writers_seen_;
     last_cycle_ = cycle;
     return;
   }

@@ -41,6 +41,8 @@ class SampleContinuity {
   [[nodiscard]] bool timing_reaches(std::uint64_t cycle) const;
   /// The cycle of the last sample (0 before the first).
   [[nodiscard]] std::uint64_t last_cycle() const { return last_cycle_; }
+  /// How many writers sent samples: more than one is a pipeline restarted, or a namesake.
+  [[nodiscard]] std::uint64_t writers() const { return writers_seen_; }
 
   [[nodiscard]] std::uint64_t received() const { return received_; }
   /// Samples sent and never received (steps in a writer's sequence numbers).
@@ -75,6 +77,7 @@ class SampleContinuity {
   std::vector<TimingReport> timing_;  ///< only the reports where the count changed, and the last
   std::uint64_t received_ = 0, lost_ = 0, out_of_order_ = 0, unsent_unplaced_ = 0;
   std::uint64_t last_cycle_ = 0;
+  std::uint64_t writers_seen_ = 0;
 };
 
 }  // namespace lode::cli

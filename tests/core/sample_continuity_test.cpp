@@ -122,6 +122,7 @@ TEST(SampleContinuity, EachWriterIsFollowedOnItsOwn) {
   EXPECT_EQ(c.lost(), 0u);
   EXPECT_EQ(c.unsent(), 0u);
   EXPECT_EQ(c.out_of_order(), 0u);
+  EXPECT_EQ(c.writers(), 2u);
   // A repeated sample of one of them is out of order, not a gap.
   c.add(1, 3, 1002);
   EXPECT_EQ(c.out_of_order(), 1u);
