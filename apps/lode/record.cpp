@@ -37,14 +37,18 @@ int record_topics(const Args& args) {
     std::fprintf(stderr, "lode record: %s\n", recorder.error().c_str());
     return kExitConfig;
   }
+  auto& rec = **recorder;
+  // A recording that got nothing is not left behind: it is only something to trip over.
+  const auto discard_file = [&] {
+    (void)rec.close();
+    std::error_code ignored;
+    std::filesystem::remove(path, ignored);
+  };
   auto client = make_client(args, "record");
   if (!client) {
-    (void)(*recorder)->close();
-    std::error_code ignored;
-    std::filesystem::remove(path, ignored);  // nothing was recorded into it
+    discard_file();
     return kExitConfig;
   }
-  auto& rec = **recorder;
   install_stop_handlers();
   StopWatch watch(duration);
 
@@ -141,9 +145,7 @@ int record_topics(const Args& args) {
   if (!found && series_of_topic.empty()) {
     std::fprintf(stderr, "lode: nothing to record: no matching lodestone topic appeared (see `lode topics`); "
                          "%s not written\n", path.c_str());
-    (void)rec.close();
-    std::error_code ignored;
-    std::filesystem::remove(path, ignored);  // an empty recording is only something to trip over
+    discard_file();
     return kExitFault;
   }
   auto last_scan = Clock::now();

@@ -40,6 +40,7 @@ void SampleContinuity::add(std::uint64_t writer, std::uint64_t sequence, std::ui
     if (!numbered) {
       lost_ += due;
     } else if (due > lost_here) {
+      unsent_ += due - lost_here;
       if (unsent_gaps_.size() < kMaxUnsentGaps) unsent_gaps_.push_back({state.cycle, cycle, due - lost_here});
       else unsent_unplaced_ += due - lost_here;
     }
@@ -70,12 +71,6 @@ void SampleContinuity::timing(std::uint64_t cycle, std::uint64_t telemetry_dropp
 
 bool SampleContinuity::timing_reaches(std::uint64_t cycle) const {
   return !timing_.empty() && timing_.back().cycle >= cycle;
-}
-
-std::uint64_t SampleContinuity::unsent() const {
-  std::uint64_t n = unsent_unplaced_;
-  for (const UnsentGap& g : unsent_gaps_) n += g.samples;
-  return n;
 }
 
 SampleContinuity::Verdict SampleContinuity::classify() const {

@@ -48,7 +48,7 @@ class SampleContinuity {
   /// Samples sent and never received (steps in a writer's sequence numbers).
   [[nodiscard]] std::uint64_t lost() const { return lost_; }
   /// Samples due by the cycle count that were never sent, whatever the reason.
-  [[nodiscard]] std::uint64_t unsent() const;
+  [[nodiscard]] std::uint64_t unsent() const { return unsent_; }
   /// Samples whose cycle was not after the newest one (duplicates, reordering, a namesake).
   [[nodiscard]] std::uint64_t out_of_order() const { return out_of_order_; }
 
@@ -76,6 +76,7 @@ class SampleContinuity {
   std::vector<UnsentGap> unsent_gaps_;
   std::vector<TimingReport> timing_;  ///< only the reports where the count changed, and the last
   std::uint64_t received_ = 0, lost_ = 0, out_of_order_ = 0, unsent_unplaced_ = 0;
+  std::uint64_t unsent_ = 0;  ///< every never-sent sample, placed or not
   std::uint64_t last_cycle_ = 0;
   std::uint64_t writers_seen_ = 0;
 };
