@@ -164,6 +164,7 @@ int write_plot_report(const std::vector<std::string>& recordings, const fs::path
     input.notes.insert(input.notes.end(), l.notes.begin(), l.notes.end());
   }
   const plot::PlotSignals signals = plot::collect_axes(files, roles);
+  input.notes.insert(input.notes.end(), signals.notes.begin(), signals.notes.end());
   if (signals.axes.empty()) {
     std::fprintf(stderr, "lode: plot: %s has no reference, truth or estimate to plot (roles: %s)\n",
                  loaded.front().path.c_str(), loaded.front().pipeline ? "monitor: section" : "by series name");

@@ -1,8 +1,8 @@
 #include "plot_data.hpp"
 
 #include <algorithm>
-#include <cstring>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <limits>
 #include <set>
@@ -226,10 +226,15 @@ PlotSignals collect_axes(const std::vector<const LoadedRecording*>& files, const
   out.grid = time_grid(*grid_series);
   for (std::size_t i = 0; i < shape->width(); ++i) axes.push_back({shape->info.names[i], shape->info.units[i], {}});
 
+  // Bit for bit: a NaN row (a cycle the file lacks) equals only the same NaN.
+  const auto same_bits = [](const std::vector<double>& a, const std::vector<double>& b) {
+    return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0);
+  };
   const auto add = [&](const LoadedRecording& file, const std::string& name, const std::string& role,
                        const std::string& detail, bool mark_file) {
     const record::SeriesData* s = file.series(name);
     if (!s) return;
+    std::vector<std::pair<AxisTraces*, Trace>> found;
     for (auto& axis : axes) {
       const auto it = std::find(s->info.names.begin(), s->info.names.end(), axis.name);
       if (it == s->info.names.end()) continue;
@@ -238,8 +243,27 @@ PlotSignals collect_axes(const std::vector<const LoadedRecording*>& files, const
       t.role = role;
       t.detail = detail;
       t.values = column_on_grid(*s, static_cast<std::size_t>(it - s->info.names.begin()), *grid_series);
-      axis.traces.push_back(std::move(t));
+      found.emplace_back(&axis, std::move(t));
     }
+    if (found.empty()) return;
+    // A replay through the recorded configuration reproduces the recorded estimates exactly:
+    // drawn again they hide each other and crowd the legend. Left out only when every axis
+    // agrees with the same earlier trace, so a difference anywhere keeps both.
+    if (mark_file) {
+      for (const Trace& earlier : found.front().first->traces) {
+        if (earlier.role != role || earlier.label.substr(0, earlier.label.find(" @ ")) != name) continue;
+        const bool everywhere = std::all_of(found.begin(), found.end(), [&](const auto& f) {
+          const auto same = std::find_if(f.first->traces.begin(), f.first->traces.end(),
+                                         [&](const Trace& t) { return t.label == earlier.label; });
+          return same != f.first->traces.end() && same_bits(same->values, f.second.values);
+        });
+        if (everywhere) {
+          out.notes.push_back(found.front().second.label + " is bit-identical to " + earlier.label + ": drawn once");
+          return;
+        }
+      }
+    }
+    for (auto& [axis, trace] : found) axis->traces.push_back(std::move(trace));
   };
   add(primary, primary_roles.reference, "reference", "monitor.reference", false);
   add(primary, primary_roles.truth, "truth", "monitor.truth", false);

@@ -107,11 +107,15 @@ struct AxisTraces {
 struct PlotSignals {
   TimeGrid grid;
   std::vector<AxisTraces> axes;
+  /// What was left out and why ("kf.pose @ run.replay.h5 is bit-identical to kf.pose: drawn once").
+  std::vector<std::string> notes;
 };
 
 /// Every axis of the truth (else the reference, else the first estimate) with the curves of
 /// every recording in `files` (the first is the primary: its rows are the grid). A file whose
-/// cycles are not the primary's is matched row by cycle; rows it lacks are NaN.
+/// cycles are not the primary's is matched row by cycle; rows it lacks are NaN. A later file's
+/// estimate equal bit for bit on every axis to the same series of an earlier file (a replay
+/// through the recorded configuration) is drawn once, with a note.
 PlotSignals collect_axes(const std::vector<const LoadedRecording*>& files, const std::vector<SeriesRoles>& roles);
 
 /// Estimate minus truth for every estimate of every axis (role "error").

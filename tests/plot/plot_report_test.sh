@@ -25,7 +25,7 @@ check_rc "replay it through the constant-velocity Kalman filter" 0 $? "$TMP/repl
   --quiet --report "$TMP/comparison.html" >"$TMP/compare.out" 2>&1
 check_rc "lode replay --report comparison.html" 0 $? "$TMP/compare.out"
 contains "replay --report .html: the replay's estimate beside the recording's" "$TMP/comparison.html" \
-  'kf.pose @ compared-kawato_planar_cv.h5'
+  '"label":"kf.pose @ compared-kawato_planar_cv.h5"'
 contains "replay --report .html: the steps section" "$TMP/comparison.html" '<section id="steps">'
 
 start=$EPOCHREALTIME
@@ -57,7 +57,7 @@ if grep -qE '<script[^>]+src=|<link[^>]+href=' "$html"; then bad "the page loads
 for figure in signals-0 errors-0 step-0 psd-0 timing-latency timing-blocks timing-overruns; do
   contains "figure $figure" "$html" "\"id\":\"$figure\""
 done
-contains "the replay's estimate beside the recording's" "$html" 'kf.pose @ replay-kawato_planar_cv.h5'
+contains "the replay's estimate beside the recording's" "$html" '"label":"kf.pose @ replay-kawato_planar_cv.h5"'
 contains "step metrics in the summary" "$html" '"rise_start_s":'
 contains "recorded timing" "$html" '"block_exec_time":'
 contains "events of the run" "$html" '"kind":"start"'
@@ -90,6 +90,20 @@ EOF
 check_rc "plot a recording without a configuration" 0 $? "$TMP/noconfig.out"
 contains "roles by name: truth found" "$TMP/noconfig.html" '"role":"truth"'
 contains "roles by name: estimate found" "$TMP/noconfig.html" '"detail":"by name","label":"kf.pose"'
+
+# A replay through the recorded configuration reproduces every estimate bit for bit: drawn once,
+# with a note, instead of two curves hiding each other.
+"$LODE" replay "$TMP/demo.h5" --output "$TMP/same.h5" --quiet >"$TMP/same.out" 2>&1
+check_rc "replay through the recorded configuration" 0 $? "$TMP/same.out"
+"$LODE" plot "$TMP/demo.h5" "$TMP/same.h5" -o "$TMP/same.html" >"$TMP/plot_same.out" 2>&1
+check_rc "plot a recording beside its identical replay" 0 $? "$TMP/plot_same.out"
+contains "an identical replay's estimate is noted" "$TMP/plot_same.out" \
+  "note: kf.pose @ same.h5 is bit-identical to kf.pose: drawn once"
+if grep -q '"label":"kf.pose @ same.h5"' "$TMP/same.html"; then
+  bad "an identical replay's estimate is drawn twice"
+else
+  ok "an identical replay's estimate is drawn once"
+fi
 
 "$LODE" plot "$TMP/demo.h5" -o "$TMP/png.html" --png "$TMP/png" --quiet >"$TMP/png.out" 2>&1
 check_rc "--png" 0 $? "$TMP/png.out"
