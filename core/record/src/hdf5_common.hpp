@@ -209,7 +209,16 @@ inline Handle create_column(hid_t group, const std::string& name, hid_t file_typ
   if (fill != nullptr) H5Pset_fill_value(dcpl.get(), fill_type, fill);
   Handle lcpl = utf8_link_properties();
   Handle dapl(H5Pcreate(H5P_DATASET_ACCESS));
-  if (!cache) H5Pset_chunk_cache(dapl.get(), 0, 0, H5D_CHUNK_CACHE_W0_DEFAULT);
+  if (!cache) {
+    H5Pset_chunk_cache(dapl.get(), 0, 0, H5D_CHUNK_CACHE_W0_DEFAULT);
+  } else {
+    // Rows are only appended: a chunk once filled is never touched again, so the cache needs
+    // room for the chunk being filled and the one before it, not HDF5's default 1 MiB per
+    // dataset (about 90 MiB for a pipeline's hundred columns, held for nothing). w0 = 1:
+    // evict fully written chunks first.
+    const std::size_t chunk_bytes = static_cast<std::size_t>(chunk_rows) * H5Tget_size(file_type);
+    H5Pset_chunk_cache(dapl.get(), 11, 2 * chunk_bytes, 1.0);
+  }
   return Handle(H5Dcreate2(group, name.c_str(), file_type, space.get(), lcpl.get(), dcpl.get(), dapl.get()));
 }
 

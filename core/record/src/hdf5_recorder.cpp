@@ -34,6 +34,10 @@ struct Recorder::Impl {
     std::vector<Handle> value_columns;
     hsize_t chunk_rows = kMaxChunkRows;
     hsize_t rows_written = 0;
+    // Rows on disk for certain: those written before the last flush() that succeeded. HDF5
+    // writes cached chunks back whenever it needs room, so after a failed write the rows past
+    // this may be on disk, fill values, or anything between.
+    hsize_t rows_durable = 0;
     hsize_t extent = 0;  // rows every column has room for (Recorder::expect_rows)
     // Rows appended but not yet written, one vector per column.
     std::vector<std::uint64_t> cycle;
@@ -102,14 +106,8 @@ struct Recorder::Impl {
     for (std::size_t v = 0; ok && v < s.value_columns.size(); ++v)
       ok = append(s.value_columns[v].get(), H5T_NATIVE_DOUBLE, s.values[v].data());
     if (!ok) {
-      s.broken = true;
       fail("cannot write " + std::to_string(count) + " rows of /signals/" + s.info.name + ": " + hdf5_message());
-      // Give back the rows this write reserved, so every column ends at the last row written
-      // (best effort: on a full disk the shrink itself may not reach the file, and then the
-      // reader drops the reserved rows by their fill values).
-      for (hid_t column : {s.cycle_column.get(), s.stamp_column.get(), s.captured_column.get(), s.time_column.get()})
-        H5Dset_extent(column, &s.rows_written);
-      for (const auto& column : s.value_columns) H5Dset_extent(column.get(), &s.rows_written);
+      give_back_to_durable();
     } else {
       s.rows_written += count;
       s.extent = std::max(s.extent, s.rows_written);
@@ -118,6 +116,24 @@ struct Recorder::Impl {
     s.stamp_ns.clear();
     s.captured_ns.clear();
     for (auto& column : s.values) column.clear();
+  }
+
+  // After a failed write or flush: every series ends at the rows its last good flush made
+  // durable, and takes no more rows. Shrinking every column there drops rows whose chunks may
+  // or may not have reached the disk, so the file never holds fill values among its rows
+  // (best effort: on a full disk the shrink itself may not reach the file; the reader then
+  // drops the rows past it by their fill values).
+  void give_back_to_durable() {
+    for (auto& series_ptr : series) {
+      Series& s = *series_ptr;
+      if (s.broken) continue;
+      s.broken = true;
+      for (hid_t column : {s.cycle_column.get(), s.stamp_column.get(), s.captured_column.get(), s.time_column.get()})
+        H5Dset_extent(column, &s.rows_durable);
+      for (const auto& column : s.value_columns) H5Dset_extent(column.get(), &s.rows_durable);
+      s.rows_written = s.rows_durable;
+      s.extent = s.rows_durable;
+    }
   }
 
   // A series made at its expected length that got fewer rows (a replay that faulted) ends
@@ -487,7 +503,12 @@ Status Recorder::flush() {
     impl_->write_counters(*s);
   }
   impl_->write_events();
-  if (H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL) < 0) impl_->fail("H5Fflush: " + hdf5_message());
+  if (H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL) < 0) {
+    impl_->fail("H5Fflush: " + hdf5_message());
+    impl_->give_back_to_durable();
+  }
+  if (impl_->first_error.is_ok())
+    for (auto& s : impl_->series) s->rows_durable = s->rows_written;
   return impl_->take_error();
 }
 
