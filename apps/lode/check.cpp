@@ -3,6 +3,7 @@
 
 #include "commands.hpp"
 #include "load_config.hpp"
+#include "reference_reach.hpp"
 
 namespace lode::cli {
 
@@ -17,6 +18,9 @@ Command check_command() {
                         p->name().c_str(), p->rate_hz(), p->ops().size());
             for (const auto& op : p->ops()) std::printf(" %s", op.label.c_str());
             std::printf("\n");
+            // Valid, yet certain to fault: a reference the envelope does not let the stage follow.
+            for (const auto& w : reference_outside_envelope(*p))
+              std::printf("%s: warning: %s\n", loaded->path.c_str(), w.c_str());
             return kExitOk;
           }};
 }

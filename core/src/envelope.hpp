@@ -41,6 +41,7 @@ class Envelope {
 
   void add(Limit limit);
   [[nodiscard]] bool empty() const { return limits_.empty(); }
+  [[nodiscard]] const std::vector<Limit>& limits() const { return limits_; }
   /// Before the first cycle of a run: forget the previous values and the first violation.
   void reset() noexcept;
   /// RT: true while every limited value is inside; false at the first that is not (kept for

@@ -152,6 +152,17 @@ void Pipeline::drive_safe() noexcept {
 
 std::string Pipeline::envelope_violation() const { return impl_->envelope.violation_text(); }
 
+std::vector<Pipeline::EnvelopeBounds> Pipeline::envelope_bounds() const {
+  std::vector<EnvelopeBounds> out;
+  for (const auto& limit : impl_->envelope.limits()) {
+    const auto dot = limit.signal.find('.');
+    SignalRef ref{limit.signal.substr(0, dot), dot == std::string::npos ? "" : limit.signal.substr(dot + 1),
+                  limit.data, limit.elements};
+    out.push_back({std::move(ref), limit.min, limit.max});
+  }
+  return out;
+}
+
 namespace {
 /// An op with something around its step: timed (op statistics, a step budget) or watched
 /// (health monitor, shadows, a warming candidate). Out of line: most ops of most cycles are not.

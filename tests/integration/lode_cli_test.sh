@@ -7,6 +7,13 @@ source "$(dirname "$0")/test_lib.sh"  # TMP, our own command sockets, check_rc, 
 
 "$LODE" check "$SRC/config/kawato_planar.yaml" >"$TMP/check.out" 2>&1; check_rc "check valid" 0 $?
 contains "check lists the cycle order" "$TMP/check.out" "stage.read glsdc kf ref ctrl stage.write"
+if grep -q "warning" "$TMP/check.out"; then bad "the demo's reference stays inside its envelope"; else ok "no warning on the demo"; fi
+# A reference the envelope does not let the stage follow: valid, but certain to fault at 2 s.
+sed 's/value: \[100.0e-6, 0.0, 1.0e-3\]/value: [0.1, 0.0, 1.0e-3]/' "$SRC/config/kawato_planar.yaml" >"$TMP/far.yaml"
+"$LODE" check "$TMP/far.yaml" >"$TMP/far.out" 2>&1; check_rc "check a reference beyond the envelope" 0 $? "$TMP/far.out"
+contains "check warns that the reference leaves the envelope" "$TMP/far.out" \
+  "far.yaml: warning: ref.out.x reaches 0.1 m at t = 2 s; the envelope keeps stage.truth.x within \[-0.08, 0.08\] m"
+contains "... for the estimate too" "$TMP/far.out" "the envelope keeps kf.pose.x within \[-0.08, 0.08\] m"
 
 "$LODE" describe "$SRC/config/kawato_planar.yaml" >"$TMP/describe.json" 2>&1; check_rc "describe" 0 $?
 contains "describe has derived controller" "$TMP/describe.json" '"derived"'

@@ -184,6 +184,13 @@ class Pipeline {
   void drive_safe() noexcept;
   /// After a cycle the envelope faulted: which value left which limit, when (not for the RT thread).
   [[nodiscard]] std::string envelope_violation() const;
+  /// The envelope's bounds on values, per limited signal: min and max per element (-inf/+inf
+  /// where not bounded). Rates and invalid-time budgets are not included.
+  struct EnvelopeBounds {
+    SignalRef signal;
+    std::vector<double> min, max;
+  };
+  [[nodiscard]] std::vector<EnvelopeBounds> envelope_bounds() const;
 
   [[nodiscard]] std::vector<Op>& ops();
   [[nodiscard]] const std::vector<Op>& ops() const;
