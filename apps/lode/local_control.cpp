@@ -173,13 +173,8 @@ void LocalControlServer::serve() {
     std::uint64_t conn;
     std::string line;
   };
-  struct Worker {
-    std::thread thread;
-    std::shared_ptr<std::atomic<bool>> done;
-  };
   std::mutex finished_mutex;
   std::vector<Finished> finished;
-  std::vector<Worker> workers;
   const int finished_fd = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
 
   const auto reply_line = [](const ControlReply& r) { return encode_reply(r) + "\n"; };
@@ -198,26 +193,20 @@ void LocalControlServer::serve() {
       request->client = request->client.empty() ? c.who : request->client + " via " + c.who;
       if ((request->kind == "swap" || request->kind == "promote") && finished_fd >= 0) {
         ++c.pending;
-        auto done = std::make_shared<std::atomic<bool>>(false);
-        workers.push_back({std::thread([&, conn = c.id, request = *request, done] {
-                             ControlReply r;
-                             try {
-                               r = service_.handle(request, options_.handle_timeout);
-                             } catch (const std::exception& ex) {
-                               r.message = request.kind + ": internal error: " + ex.what();
-                             }
-                             r.id = request.id;
-                             {
-                               std::lock_guard lock(finished_mutex);
-                               finished.push_back({conn, reply_line(r)});
-                             }
-                             done->store(true);
-                             const std::uint64_t one = 1;
-                             if (::write(finished_fd, &one, sizeof one) < 0) {
-                               // The counter is already set: the loop wakes anyway.
-                             }
-                           }),
-                           done});
+        service_.handle_async(
+            *request,
+            [&, conn = c.id, id = request->id](ControlReply r) {
+              r.id = id;
+              {
+                std::lock_guard lock(finished_mutex);
+                finished.push_back({conn, reply_line(r)});
+              }
+              const std::uint64_t one = 1;
+              if (::write(finished_fd, &one, sizeof one) < 0) {
+                // The counter is already set: the loop wakes anyway.
+              }
+            },
+            options_.handle_timeout);
         return;
       }
       try {
@@ -272,11 +261,6 @@ void LocalControlServer::serve() {
         if (it == conns.end()) continue;  // the client has gone
         it->out += r.line;
         --it->pending;
-      }
-      for (std::size_t w = workers.size(); w-- > 0;) {
-        if (!workers[w].done->load()) continue;
-        workers[w].thread.join();
-        workers.erase(workers.begin() + static_cast<std::ptrdiff_t>(w));
       }
     }
 
@@ -365,8 +349,9 @@ void LocalControlServer::serve() {
     }
   }
   for (auto& c : conns) ::close(c.fd);
-  // A swap still running ends with the run: its wait sees the loop stop.
-  for (auto& w : workers) w.thread.join();
+  // A swap still running ends with the run (its wait sees the loop stop); its reply reaches
+  // the queue above, which goes away with this function.
+  service_.join_workers();
   if (finished_fd >= 0) ::close(finished_fd);
 }
 

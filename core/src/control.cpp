@@ -187,6 +187,47 @@ ControlReply ControlService::exchange(const ControlRequest& r, const Entry& e, s
   return reply;
 }
 
+ControlService::~ControlService() { join_workers(); }
+
+void ControlService::handle_async(const ControlRequest& request, std::function<void(ControlReply)> answer,
+                                  std::chrono::milliseconds timeout) {
+  const auto answered = [this, timeout](const ControlRequest& r) {
+    try {
+      return handle(r, timeout);
+    } catch (const std::exception& ex) {
+      ControlReply reply;
+      reply.id = r.id;
+      reply.message = r.kind + ": internal error: " + ex.what();
+      return reply;
+    }
+  };
+  if (request.kind != "swap" && request.kind != "promote") {
+    answer(answered(request));
+    return;
+  }
+  std::lock_guard lock(workers_mutex_);
+  for (std::size_t w = workers_.size(); w-- > 0;) {
+    if (!workers_[w].done->load(std::memory_order_acquire)) continue;
+    workers_[w].thread.join();
+    workers_.erase(workers_.begin() + static_cast<std::ptrdiff_t>(w));
+  }
+  auto done = std::make_shared<std::atomic<bool>>(false);
+  workers_.push_back({std::thread([answered, request, answer = std::move(answer), done] {
+                        answer(answered(request));
+                        done->store(true, std::memory_order_release);
+                      }),
+                      done});
+}
+
+void ControlService::join_workers() {
+  std::vector<Worker> workers;
+  {
+    std::lock_guard lock(workers_mutex_);
+    workers.swap(workers_);
+  }
+  for (auto& w : workers) w.thread.join();
+}
+
 ControlReply ControlService::handle(const ControlRequest& r, std::chrono::milliseconds timeout) {
   std::unique_lock lock(mutex_);
   if (r.kind == "swap" || r.kind == "promote") {

@@ -88,22 +88,13 @@ void Bridge::handle_command(const lode::msg::Command& command, const fdds::Sampl
   // The discovered identity when access is checked, else what the sender declares.
   const ControlRequest request = detail::command_request(command, known ? peer.name : command.client());
   commands_accepted_.fetch_add(1, std::memory_order_relaxed);
-  if ((request.kind == "swap" || request.kind == "promote") && swap_worker_done_.load(std::memory_order_acquire)) {
-    // A swap lasts as long as its shadow period (minutes): on a thread of its own, so this one
-    // goes on taking commands (a second swap meanwhile is refused by the hot-swap service).
-    if (swap_worker_.joinable()) swap_worker_.join();
-    swap_worker_done_.store(false, std::memory_order_release);
-    swap_worker_ = std::thread([this, request, command] {
-      ControlReply reply = control_->handle(request);
-      reply.id = command.id();
-      write_reply(command, reply);
-      swap_worker_done_.store(true, std::memory_order_release);
-    });
-    return;
-  }
-  ControlReply reply = control_->handle(request);
-  reply.id = command.id();
-  write_reply(command, reply);
+  // A swap lasts as long as its shadow period (minutes): ControlService runs it on a worker,
+  // so this thread goes on taking commands (a second swap meanwhile is refused by the hot-swap
+  // service). stop() joins the workers before the writer goes away.
+  control_->handle_async(request, [this, command](ControlReply reply) {
+    reply.id = command.id();
+    write_reply(command, reply);
+  });
 }
 
 void Bridge::refuse(const lode::msg::Command& command, const std::string& message) {

@@ -158,7 +158,7 @@ class Bridge final : public TelemetryBridge {
     wake_.notify_all();
     if (publisher_thread_.joinable()) publisher_thread_.join();
     if (command_thread_.joinable()) command_thread_.join();
-    if (swap_worker_.joinable()) swap_worker_.join();  // a swap ends with the run: its wait sees the loop stop
+    if (control_) control_->join_workers();  // a swap ends with the run: its wait sees the loop stop
     if (command_reader_ != nullptr) note_malformed_commands();  // those dropped since its last look
     // Reliable readers get what was written last (the final samples, the stop event, the
     // last reply) before the participant goes: up to 0.5 s per writer, usually microseconds.
@@ -309,8 +309,6 @@ class Bridge final : public TelemetryBridge {
   bool commands_pending_ = false;
   std::thread publisher_thread_;
   std::thread command_thread_;
-  std::thread swap_worker_;                       ///< the swap command under way (handle_command)
-  std::atomic<bool> swap_worker_done_{true};
 
   std::mutex peers_mutex_;
   std::condition_variable peers_changed_;

@@ -14,8 +14,10 @@
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "lode/event_log.hpp"
@@ -51,6 +53,10 @@ class ControlService final : public CycleHook {
   using SwapHandler = std::function<ControlReply(const ControlRequest&, std::unique_lock<std::mutex>& commands)>;
 
   ControlService(Pipeline& pipeline, EventLog& events);
+  /// Waits for the swaps still under way (join_workers()).
+  ~ControlService() override;
+  ControlService(const ControlService&) = delete;
+  ControlService& operator=(const ControlService&) = delete;
 
   /// RT thread, before each cycle: apply a pending change. Wait-free.
   void before_cycle(const Tick& tick) noexcept override;
@@ -62,6 +68,17 @@ class ControlService final : public CycleHook {
   /// Validate and execute. Thread-safe (serialised); never called on the RT thread.
   ControlReply handle(const ControlRequest& request,
                       std::chrono::milliseconds timeout = std::chrono::milliseconds(2000));
+
+  /// handle(), with its reply given to `answer` (called once). A swap or promote lasts as
+  /// long as its newcomer's shadow period (minutes) and runs on a worker thread, so that the
+  /// transport goes on taking commands meanwhile; everything else is answered before this
+  /// returns. `answer` runs on the worker for a swap: what it reaches must outlive the swap,
+  /// or the transport calls join_workers() before it goes away.
+  void handle_async(const ControlRequest& request, std::function<void(ControlReply)> answer,
+                    std::chrono::milliseconds timeout = std::chrono::milliseconds(2000));
+  /// Waits for every swap started by handle_async() to have answered (a swap ends with the run:
+  /// its wait sees the loop stop).
+  void join_workers();
 
   /// Swap and recording are implemented elsewhere (hot-swap, recorder); without a handler
   /// those commands are answered with an error that says so.
@@ -91,6 +108,13 @@ class ControlService final : public CycleHook {
   SwapHandler swap_handler_;
   Handler record_handler_;
   std::atomic<bool> running_{false};
+
+  struct Worker {
+    std::thread thread;
+    std::shared_ptr<std::atomic<bool>> done;
+  };
+  std::mutex workers_mutex_;
+  std::vector<Worker> workers_;  ///< handle_async()'s swaps; the finished ones joined at the next call
 
   // One-slot mailbox: idle -> posted (caller) -> busy -> done (RT) -> idle (caller). A caller
   // that times out takes a posted request back (posted -> idle) unless the RT thread already
