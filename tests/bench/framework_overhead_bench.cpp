@@ -115,10 +115,12 @@ class ByHand {
 /// or without the output digest `lode run` adds as a hook.
 class Scheduled {
  public:
-  Scheduled(lode::Pipeline& p, bool with_digest)
+  /// `timing_stride`: every how many cycles each op is timed; `lode run` times every 64th on
+  /// the simulated clock, every cycle on the real clock (1).
+  Scheduled(lode::Pipeline& p, bool with_digest, std::uint64_t timing_stride = kTimingStride)
       : digest_(p.signals(), lode::cli::DigestAlgorithm::xxh3_64), scheduler_(p, clock_, events_) {
     if (with_digest) scheduler_.add_hook(&digest_);
-    scheduler_.set_simulated_timing_stride(kTimingStride);  // as `lode run` sets it
+    scheduler_.set_simulated_timing_stride(timing_stride);
   }
   bool run(std::uint64_t cycles) { return !scheduler_.run(cycles, stop_, nullptr).faulted; }
   lode::cli::OutputDigest& digest() { return digest_; }
@@ -241,6 +243,17 @@ void BM_scheduler(benchmark::State& state, bool with_digest) {
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * kBatch));
 }
 
+/// The scheduler timing every op of every cycle, as it does on the real clock (where each op's
+/// execution time feeds the run summary and any step budget): what the clock reads cost.
+void BM_scheduler_every_op_timed(benchmark::State& state) {
+  if (!same_outputs(state)) return;
+  Loaded l;
+  Scheduled scheduled(*l.pipeline, false, 1);
+  for (auto _ : state)
+    if (!scheduled.run(kBatch)) state.SkipWithError("fault");
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * kBatch));
+}
+
 /// This thread's CPU time: a batch preempted by another process is not charged for it.
 std::int64_t thread_cpu_ns() {
   timespec ts{};
@@ -320,6 +333,15 @@ void BM_digest_in_cycle(benchmark::State& state) {
   overhead(state, plain, digested, "scheduler", "scheduler_digest");
 }
 
+/// What timing every op of every cycle (the real clock's way) adds to a cycle: the scheduler
+/// timing every 64th cycle and timing every cycle, paired as above.
+void BM_op_timing_in_cycle(benchmark::State& state) {
+  if (!same_outputs(state)) return;
+  Loaded a, b;
+  Scheduled sampled(*a.pipeline, false), every(*b.pipeline, false, 1);
+  overhead(state, sampled, every, "sampled", "every_op_timed");
+}
+
 // One function per way, each running kInstructionCycles cycles, for callgrind's
 // --toggle-collect (framework_overhead_instructions.sh): its inclusive instruction count is
 // that way's, nothing of the set-up or the checks around it.
@@ -347,6 +369,11 @@ void BM_instructions(benchmark::State& state) {
 BENCHMARK(BM_by_hand)->Name("kawato_planar/by_hand")->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_direct)->Name("kawato_planar/direct")->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(BM_scheduler, scheduler, false)->Name("kawato_planar/scheduler")->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_scheduler_every_op_timed)->Name("kawato_planar/scheduler_every_op_timed")->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_op_timing_in_cycle)
+    ->Name("kawato_planar/op_timing_in_cycle")
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(kPairs);
 BENCHMARK_CAPTURE(BM_scheduler, scheduler_digest, true)
     ->Name("kawato_planar/scheduler+digest")
     ->Unit(benchmark::kMicrosecond);
