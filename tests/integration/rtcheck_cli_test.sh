@@ -126,7 +126,11 @@ l = json.load(open(sys.argv[1]))["latency"]
 assert l["count"] + l["missed_periods"] == 2000, l
 assert l["missed_periods"] >= 100 and l["max_us"] >= 100000, l
 late = sum(b["count"] for b in l["histogram"] if b["up_to_us"] is None or b["up_to_us"] > 1000)
-assert late < 20, f"{late} wake-ups later than 1 ms: the stall was recorded as catch-up wake-ups"' "$TMP/stall.json"; then
+# Caught up, the stall would be as many late wake-ups as deadlines it passed (300); a loaded
+# host adds late wake-ups of its own (36 of 2000 seen on a 2-core CI run), so the bound is
+# relative: far fewer late wake-ups than missed deadlines.
+missed = l["missed_periods"]
+assert 3 * late < missed, f"{late} wake-ups later than 1 ms against {missed} missed periods: the stall was recorded as catch-up wake-ups"' "$TMP/stall.json"; then
   ok "a 0.3 s stall: one late wake-up, the passed deadlines counted as missed periods"
 else
   bad "a 0.3 s stall: $(head -c 800 "$TMP/stall.json")"
