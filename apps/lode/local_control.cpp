@@ -191,7 +191,7 @@ void LocalControlServer::serve() {
     } else {
       requests_.fetch_add(1);
       request->client = request->client.empty() ? c.who : request->client + " via " + c.who;
-      if ((request->kind == "swap" || request->kind == "promote") && finished_fd >= 0) {
+      if (ControlService::is_swap(*request) && finished_fd >= 0) {
         ++c.pending;
         service_.handle_async(
             *request,

@@ -201,7 +201,7 @@ void ControlService::handle_async(const ControlRequest& request, std::function<v
       return reply;
     }
   };
-  if (request.kind != "swap" && request.kind != "promote") {
+  if (!is_swap(request)) {
     answer(answered(request));
     return;
   }
@@ -230,7 +230,7 @@ void ControlService::join_workers() {
 
 ControlReply ControlService::handle(const ControlRequest& r, std::chrono::milliseconds timeout) {
   std::unique_lock lock(mutex_);
-  if (r.kind == "swap" || r.kind == "promote") {
+  if (is_swap(r)) {
     if (!swap_handler_) return fail(r, r.kind + ": this pipeline runner has no hot-swap service");
     // The handler lets go of the lock while a newcomer runs as a shadow (which may last
     // minutes), so other commands are served meanwhile; it holds it again to finish.

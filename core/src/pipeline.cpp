@@ -154,12 +154,8 @@ std::string Pipeline::envelope_violation() const { return impl_->envelope.violat
 
 std::vector<Pipeline::EnvelopeBounds> Pipeline::envelope_bounds() const {
   std::vector<EnvelopeBounds> out;
-  for (const auto& limit : impl_->envelope.limits()) {
-    const auto dot = limit.signal.find('.');
-    SignalRef ref{limit.signal.substr(0, dot), dot == std::string::npos ? "" : limit.signal.substr(dot + 1),
-                  limit.data, limit.elements};
-    out.push_back({std::move(ref), limit.min, limit.max});
-  }
+  for (const auto& limit : impl_->envelope.limits())
+    if (auto ref = signal(limit.signal)) out.push_back({std::move(*ref), limit.min, limit.max});
   return out;
 }
 

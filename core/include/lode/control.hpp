@@ -69,6 +69,10 @@ class ControlService final : public CycleHook {
   ControlReply handle(const ControlRequest& request,
                       std::chrono::milliseconds timeout = std::chrono::milliseconds(2000));
 
+  /// Whether `request` is a swap or promote: served by the swap handler, for as long as the
+  /// newcomer's shadow period.
+  static bool is_swap(const ControlRequest& request) { return request.kind == "swap" || request.kind == "promote"; }
+
   /// handle(), with its reply given to `answer` (called once). A swap or promote lasts as
   /// long as its newcomer's shadow period (minutes) and runs on a worker thread, so that the
   /// transport goes on taking commands meanwhile; everything else is answered before this
