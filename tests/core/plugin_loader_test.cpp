@@ -38,9 +38,9 @@ TEST(PluginLoader, APluginBuiltForTheLastAbiIsRefusedNamingBothVersions) {
   lode::PluginRegistry reg(std::vector<std::string>{});
   auto r = reg.load_file(LODE_BAD_PLUGIN_DIR "/lode-test.old_abi.so");
   ASSERT_FALSE(r);
-  EXPECT_EQ(lode::kPluginAbiVersion, 5u) << "a new ABI: give this test plugin the one before";
-  EXPECT_NE(r.error().find("plugin ABI version 4"), std::string::npos) << r.error();
-  EXPECT_NE(r.error().find("does not match this lodestone's ABI version 5"), std::string::npos) << r.error();
+  EXPECT_EQ(lode::kPluginAbiVersion, 6u) << "a new ABI: give this test plugin the one before";
+  EXPECT_NE(r.error().find("plugin ABI version 5"), std::string::npos) << r.error();
+  EXPECT_NE(r.error().find("does not match this lodestone's ABI version 6"), std::string::npos) << r.error();
   EXPECT_NE(r.error().find("rebuild the plugin against this SDK"), std::string::npos) << r.error();
 }
 

@@ -62,12 +62,15 @@ StepStatus UnscentedEstimator::cycle(S& sized, bool first) noexcept {
     core.set(x_, P_);
     return fault("UKF: (L + lambda) P is not positive definite (Cholesky failed)");
   }
-  if (!first && !core.predict([this](const double* x, double* next) { propagate(x, next); }, sized.Q)) {
+  if (!first && !core.predict(
+                    [this](const double* x, std::size_t count, double* next) { propagate_points(x, count, next); },
+                    sized.Q)) {
     core.set(x_, P_);
     return fault("UKF: the predicted state or covariance is not finite");
   }
   for (Eigen::Index c = 0; c < sized.y.size(); ++c) sized.y(c) = y_(c);  // no memmove call
-  if (!core.update([this](const double* x, double* y) { measure(x, y); }, sized.y, sized.R)) {
+  if (!core.update([this](const double* x, std::size_t count, double* y) { measure_points(x, count, y); },
+                   sized.y, sized.R)) {
     core.set(x_, P_);
     return fault("UKF: P_yy not positive definite, or the updated state is not finite");
   }

@@ -41,6 +41,7 @@
 #include <array>
 #include <cmath>
 #include <cstddef>
+#include <type_traits>
 
 #include "estimator/model_estimator.hpp"
 
@@ -205,17 +206,17 @@ class UnscentedCore {
     std::array<double, kN> x, base, next;  // the first n_ of each are written before they are read
     if (sums_ == Sums::about_centre) {
       for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(centre_(j));
-      f(x.data(), base.data());
+      one_point(f, x.data(), base.data());
       for (int i = 1; i < points(); ++i) {
         for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(centre_(j)) + static_cast<double>(chi_(j, i));
-        f(x.data(), next.data());
+        one_point(f, x.data(), next.data());
         for (int j = 0; j < n(); ++j) chi_(j, i) = static_cast<Scalar>(next[j] - base[j]);
       }
       for (int j = 0; j < n(); ++j) centre_(j) = static_cast<Scalar>(base[j]);
     } else {
       for (int i = 0; i < points(); ++i) {
         for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(chi_(j, i));
-        f(x.data(), next.data());
+        one_point(f, x.data(), next.data());
         for (int j = 0; j < n(); ++j) chi_(j, i) = static_cast<Scalar>(next[j]);
       }
     }
@@ -244,11 +245,11 @@ class UnscentedCore {
     y_dev.setZero(m_);
     if (sums_ == Sums::about_centre) {
       for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(centre_(j));
-      h(x.data(), base.data());
+      one_point(h, x.data(), base.data());
       upsilon_.col(0).setZero();
       for (int i = 1; i < points(); ++i) {
         for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(centre_(j)) + static_cast<double>(chi_(j, i));
-        h(x.data(), out.data());
+        one_point(h, x.data(), out.data());
         for (int c = 0; c < m(); ++c) upsilon_(c, i) = static_cast<Scalar>(out[c] - base[c]);
       }
       for (int i = 1; i < points(); ++i) {
@@ -260,7 +261,7 @@ class UnscentedCore {
     } else {
       for (int i = 0; i < points(); ++i) {
         for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(chi_(j, i));
-        h(x.data(), out.data());
+        one_point(h, x.data(), out.data());
         for (int c = 0; c < m(); ++c) upsilon_(c, i) = static_cast<Scalar>(out[c]);
       }
       y_hat = wm0_ * upsilon_.col(0);
@@ -315,6 +316,42 @@ class UnscentedCore {
   [[nodiscard]] const Gain& gain() const noexcept { return gain_; }
 
  private:
+  /// The points chi_0 and chi_0 + d_i (i = 1 ... 2N), N doubles each one after another, each
+  /// formed in double as the model takes it.
+  [[gnu::always_inline]] void absolute_points(std::array<double, kN*(2 * kN + 1)>& points) const noexcept {
+    const int N = n();
+#pragma GCC unroll 12
+    for (int j = 0; j < N; ++j) points[j] = static_cast<double>(centre_(j));
+    for (int i = 1; i < 2 * N + 1; ++i) {
+#pragma GCC unroll 12
+      for (int j = 0; j < N; ++j) points[i * N + j] = static_cast<double>(centre_(j)) + static_cast<double>(chi_(j, i));
+    }
+  }
+
+  /// model at one point, whichever form it takes.
+  template <class Model>
+  static void one_point(Model& model, const double* point, double* result) noexcept {
+    if constexpr (std::is_invocable_v<Model&, const double*, std::size_t, double*>) {
+      model(point, std::size_t{1}, result);
+    } else {
+      model(point, result);
+    }
+  }
+
+  /// model at each of the 2N + 1 points (N doubles each), the results `width` apart: in one
+  /// call when the model takes them all (model(points, count, results): one virtual call to a
+  /// plugin instead of one per point), else point by point (model(point, result)).
+  template <class Model>
+  [[gnu::always_inline]] void each_point(Model& model, const double* points, double* results, int width) const noexcept {
+    const int N = n();
+    const int count = 2 * N + 1;
+    if constexpr (std::is_invocable_v<Model&, const double*, std::size_t, double*>) {
+      model(points, static_cast<std::size_t>(count), results);
+    } else {
+      for (int i = 0; i < count; ++i) model(points + i * N, results + i * width);
+    }
+  }
+
   /// out = the symmetric matrix whose upper triangle (row j <= column k) is upper[j + k n]:
   /// formed once and mirrored, so P is exactly symmetric without averaging it with its
   /// transpose. False when a coefficient is not finite (one test from independent per-element
@@ -373,16 +410,13 @@ class UnscentedCore {
   template <class F, class Cov>
   [[gnu::always_inline]] bool predict_about_centre(F& f, const Cov& Q) noexcept {
     const int N = n();
-    std::array<double, kN> x{}, base{}, next{};
-#pragma GCC unroll 12
-    for (int j = 0; j < N; ++j) x[j] = static_cast<double>(centre_(j));
-    f(x.data(), base.data());
+    std::array<double, kN*(2 * kN + 1)> points, propagated;  // the first N (2N + 1) written first
+    absolute_points(points);
+    each_point(f, points.data(), propagated.data(), N);
+    const double* base = propagated.data();
     for (int i = 1; i < 2 * N + 1; ++i) {
 #pragma GCC unroll 12
-      for (int j = 0; j < N; ++j) x[j] = static_cast<double>(centre_(j)) + static_cast<double>(chi_(j, i));
-      f(x.data(), next.data());
-#pragma GCC unroll 12
-      for (int j = 0; j < N; ++j) chi_(j, i) = static_cast<Scalar>(next[j] - base[j]);
+      for (int j = 0; j < N; ++j) chi_(j, i) = static_cast<Scalar>(propagated[i * N + j] - base[j]);
     }
     std::array<Scalar, kN> sum{};
     std::array<Scalar, kN * kN> cov{};  // upper triangle, column-major as Matrix
@@ -418,19 +452,13 @@ class UnscentedCore {
   template <class H>
   [[gnu::always_inline]] bool update_about_centre(H& h, Scalar y, Scalar r) noexcept {
     const int N = n();
-    std::array<double, kN> x{};
-    double base = 0.0;
-    double out = 0.0;
-#pragma GCC unroll 12
-    for (int j = 0; j < N; ++j) x[j] = static_cast<double>(centre_(j));
-    h(x.data(), &base);
+    std::array<double, kN*(2 * kN + 1)> points;  // the first N (2N + 1) written first
+    std::array<double, 2 * kN + 1> measured;
+    absolute_points(points);
+    each_point(h, points.data(), measured.data(), 1);
+    const double base = measured[0];
     upsilon_(0, 0) = Scalar(0);
-    for (int i = 1; i < 2 * N + 1; ++i) {
-#pragma GCC unroll 12
-      for (int j = 0; j < N; ++j) x[j] = static_cast<double>(centre_(j)) + static_cast<double>(chi_(j, i));
-      h(x.data(), &out);
-      upsilon_(0, i) = static_cast<Scalar>(out - base);
-    }
+    for (int i = 1; i < 2 * N + 1; ++i) upsilon_(0, i) = static_cast<Scalar>(measured[i] - base);
     // x^- relative to the centre point: the prediction left it in points_mean_ when these
     // are its points.
     std::array<Scalar, kN> x_dev{};

@@ -284,6 +284,24 @@ void Suspension::state(double* x) const noexcept {
   for (std::size_t i = 0; i < kStateSize; ++i) x[i] = x_[i];
 }
 
+namespace {
+
+/// eq. 33: x(k+1) = x(k) + t_s f(x(k), u(k)), without the copy through a local array that
+/// the RK4 branch needs (x_next may be x: everything is read before anything is written).
+[[gnu::always_inline]] inline void euler_step(const SuspensionConfig& c, double dt_s, const double* x, double u,
+                                              double* x_next) noexcept {
+  std::array<double, Suspension::kStateSize> dx;
+  slope(c, x, u, dx.data());
+  const double gap = x[Suspension::kGap] + dt_s * dx[Suspension::kGap];
+  const double velocity = x[Suspension::kVelocity] + dt_s * dx[Suspension::kVelocity];
+  const double current = x[Suspension::kCurrent] + dt_s * dx[Suspension::kCurrent];
+  x_next[Suspension::kGap] = gap;
+  x_next[Suspension::kVelocity] = velocity;
+  x_next[Suspension::kCurrent] = current;
+}
+
+}  // namespace
+
 void Suspension::propagate(double dt_s, const double* x, const double* u, double* x_next) const noexcept {
   if (config_.process_discretization == SuspensionDiscretization::rk4) {
     State next;
@@ -292,16 +310,18 @@ void Suspension::propagate(double dt_s, const double* x, const double* u, double
     std::copy(next.begin(), next.end(), x_next);
     return;
   }
-  // eq. 33: x(k+1) = x(k) + t_s f(x(k), u(k)), without the copy through a local array that
-  // the RK4 branch needs (x_next may be x: everything is read before anything is written).
-  std::array<double, kStateSize> dx;
-  slope(config_, x, u[kCoilVoltage], dx.data());
-  const double gap = x[kGap] + dt_s * dx[kGap];
-  const double velocity = x[kVelocity] + dt_s * dx[kVelocity];
-  const double current = x[kCurrent] + dt_s * dx[kCurrent];
-  x_next[kGap] = gap;
-  x_next[kVelocity] = velocity;
-  x_next[kCurrent] = current;
+  euler_step(config_, dt_s, x, u[kCoilVoltage], x_next);
+}
+
+void Suspension::propagate_points(double dt_s, const double* x, std::size_t count, const double* u,
+                                  double* x_next) const noexcept {
+  if (config_.process_discretization == SuspensionDiscretization::rk4) {
+    for (std::size_t i = 0; i < count; ++i) propagate(dt_s, x + i * kStateSize, u, x_next + i * kStateSize);
+    return;
+  }
+  // The points are independent: one loop, each point's divisions free to overlap the next's.
+  for (std::size_t i = 0; i < count; ++i)
+    euler_step(config_, dt_s, x + i * kStateSize, u[kCoilVoltage], x_next + i * kStateSize);
 }
 
 bool Suspension::process_jacobian(double dt_s, const double* x, const double* /*u*/, double* F) const noexcept {

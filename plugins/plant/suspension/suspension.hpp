@@ -117,6 +117,8 @@ class Suspension final : public PlantModel, public ProcessModel {
 
   // ProcessModel
   void propagate(double dt_s, const double* x, const double* u, double* x_next) const noexcept override;
+  void propagate_points(double dt_s, const double* x, std::size_t count, const double* u,
+                        double* x_next) const noexcept override;
   bool process_jacobian(double dt_s, const double* x, const double* u, double* F) const noexcept override;
 
   /// Attractive force of eq. 13 [N] (towards the coil), gap clamped to the coil-face stop.

@@ -55,6 +55,16 @@ void HallGap::evaluate(const double* state, double* y) const noexcept {
   y[0] = c_h + conversion_.coil_v.value(state[kCoilVoltage]);  // eq. 15 solved for v_hall
 }
 
+void HallGap::evaluate_points(const double* states, std::size_t stride, std::size_t count,
+                              double* y) const noexcept {
+  if (output_ == Output::gap) {
+    for (std::size_t i = 0; i < count; ++i)
+      y[i] = reported_gap_m(1e3 * states[i * stride + kGap], nearest_mm_, farthest_mm_);
+    return;
+  }
+  for (std::size_t i = 0; i < count; ++i) evaluate(states + i * stride, y + i);
+}
+
 void HallGap::jacobian(const double* state, double* y, double* H) const noexcept {
   const double distance_mm = 1e3 * state[kGap];
   const bool inside = distance_mm > nearest_mm_ && distance_mm < farthest_mm_;

@@ -52,6 +52,7 @@ class HallGap final : public MeasurementModel {
 
   void evaluate(const double* state, double* y) const noexcept override;
   void jacobian(const double* state, double* y, double* H) const noexcept override;
+  void evaluate_points(const double* states, std::size_t stride, std::size_t count, double* y) const noexcept override;
   void describe(Json& out) const override;
 
   [[nodiscard]] const hall::Conversion& conversion() const { return conversion_; }

@@ -1,10 +1,11 @@
-// A plugin built against the previous SDK (ABI 4: models overrode virtual element-list
-// accessors; the descriptor had today's fields). Only the first two fields are read.
+// A plugin built against the previous SDK (ABI 5: the models had no evaluate_points() or
+// propagate_points(), so their virtual tables are laid out differently; the descriptor had
+// today's fields). Only the first two fields are read.
 #include <cstddef>
 #include <cstdint>
 
 namespace {
-struct DescriptorAbi4 {
+struct DescriptorAbi5 {
   std::uint32_t abi_version;
   std::uint32_t descriptor_size;
   const char* name;
@@ -20,7 +21,7 @@ struct DescriptorAbi4 {
 }  // namespace
 
 extern "C" __attribute__((visibility("default"))) const void* lode_plugin_descriptor() {
-  static const DescriptorAbi4 d{4, sizeof(DescriptorAbi4), "filter.from_the_past", 0, "1.0.0",
-                                "built for ABI 4", nullptr, 0, nullptr, 0, nullptr};
+  static const DescriptorAbi5 d{5, sizeof(DescriptorAbi5), "filter.from_the_past", 0, "1.0.0",
+                                "built for ABI 5", nullptr, 0, nullptr, 0, nullptr};
   return &d;
 }

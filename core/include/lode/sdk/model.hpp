@@ -10,6 +10,7 @@
 // configure() when the parameters shape it); the accessors return what it declared.
 #pragma once
 
+#include <cstddef>
 #include <utility>
 
 #include "lode/sdk/component.hpp"
@@ -63,6 +64,16 @@ class MeasurementModel : public virtual Component {
   virtual void evaluate(const double* state, double* y) const noexcept = 0;
   /// y = h(state) and H = dh/dstate, row-major channels() x state_elements().
   virtual void jacobian(const double* state, double* y, double* H) const noexcept = 0;
+  /// evaluate() at `count` states, the i-th at states + i * stride (stride >=
+  /// state_elements().size()), the i-th result at y + i * channels().size(). What a sigma-point
+  /// filter asks for every point of a step: a model overrides it to evaluate the points in
+  /// one loop instead of a virtual call each, with evaluate()'s operations for every point
+  /// (the same results). RT-safe.
+  virtual void evaluate_points(const double* states, std::size_t stride, std::size_t count,
+                               double* y) const noexcept {
+    const std::size_t m = channels().size();
+    for (std::size_t i = 0; i < count; ++i) evaluate(states + i * stride, y + i * m);
+  }
   virtual void describe(Json& /*out*/) const {}
 
  protected:
@@ -92,6 +103,16 @@ class ProcessModel : public virtual Component {
   [[nodiscard]] const Elements& process_inputs() const { return process_inputs_; }
   /// x_next = f(x, u) over dt_s. RT-safe.
   virtual void propagate(double dt_s, const double* x, const double* u, double* x_next) const noexcept = 0;
+  /// propagate() for `count` states laid out one after another (process_state().size() each),
+  /// into x_next in the same layout (x_next may not overlap x). What a sigma-point filter asks
+  /// for every point of a step: a model overrides it to run the points in one loop instead of
+  /// a virtual call each, with propagate()'s operations for every point (the same results).
+  /// RT-safe.
+  virtual void propagate_points(double dt_s, const double* x, std::size_t count, const double* u,
+                                double* x_next) const noexcept {
+    const std::size_t n = process_state().size();
+    for (std::size_t i = 0; i < count; ++i) propagate(dt_s, x + i * n, u, x_next + i * n);
+  }
   /// F = df/dx (row-major n x n) at (x, u). Returns false if the model has no analytic
   /// Jacobian (an EKF then differentiates numerically). RT-safe.
   virtual bool process_jacobian(double /*dt_s*/, const double* /*x*/, const double* /*u*/,

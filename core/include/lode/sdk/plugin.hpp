@@ -34,7 +34,7 @@ namespace lode {
 /// (PortSpec), Board/Tunables/EstimatorState as optional interfaces beside a cycle-only Block.
 /// 5: models hold the element lists they declare (declare_*_elements) instead of overriding
 /// virtual accessors.
-inline constexpr std::uint32_t kPluginAbiVersion = 5;
+inline constexpr std::uint32_t kPluginAbiVersion = 6;
 inline constexpr const char* kPluginSymbol = "lode_plugin_descriptor";
 
 enum class PluginKind : std::uint32_t {

@@ -279,6 +279,35 @@ TEST(SuspensionProcess, Rk4DiscretisationHasNoAnalyticJacobian) {
   for (std::size_t i = 0; i < 3; ++i) EXPECT_DOUBLE_EQ(next[i], y[i]);
 }
 
+TEST(SuspensionProcess, PointsInOneCallAreEachPropagatedAsAlone) {
+  // propagate_points() (a UKF's 2n + 1 sigma points in one call) must give every point the
+  // bits propagate() gives it alone: the filters' estimates are compared bit for bit. Points
+  // far apart (one on the coil face, where the force is held), both discretisations.
+  for (const auto discretization : {SuspensionDiscretization::euler, SuspensionDiscretization::rk4}) {
+    SuspensionConfig c = pipeline_config();
+    c.process_discretization = discretization;
+    Suspension s;
+    s.apply(c);
+    const std::array<std::array<double, 3>, 7> points{{{0.026, 0.0, 0.6375},
+                                                       {0.0261, 0.001, 0.64},
+                                                       {0.0259, -0.002, 0.63},
+                                                       {0.024, 0.01, 0.5},
+                                                       {0.030, -0.01, 0.9},
+                                                       {0.0005, 0.0, 0.2},
+                                                       {0.026, 0.0, 0.6376}}};
+    const double u = 1.2;
+    std::array<double, 21> batch{};
+    s.propagate_points(kDt, points[0].data(), points.size(), &u, batch.data());
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      std::array<double, 3> alone{};
+      s.propagate(kDt, points[i].data(), &u, alone.data());
+      for (std::size_t j = 0; j < 3; ++j)
+        EXPECT_EQ(batch[3 * i + j], alone[j]) << "point " << i << " element " << j << ", "
+                                              << (discretization == SuspensionDiscretization::rk4 ? "rk4" : "euler");
+    }
+  }
+}
+
 TEST(SuspensionPlant, ElementsAndReset) {
   Suspension s;
   s.apply(pipeline_config());

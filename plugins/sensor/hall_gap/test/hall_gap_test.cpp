@@ -196,6 +196,26 @@ TEST(HallGapModel, GapOutputIsTheDirectDistance) {
   EXPECT_EQ(H, 0.0);
 }
 
+TEST(HallGapModel, PointsInOneCallAreEachEvaluatedAsAlone) {
+  // evaluate_points() (a UKF's sigma points in one call, each point `stride` doubles after the
+  // one before: the estimator's whole state) must give every point the bits evaluate() gives
+  // it alone, on both outputs, inside the range and clamped at either end.
+  for (const auto output : {HallGap::Output::gap, HallGap::Output::hall_voltage}) {
+    const auto model_owner = configured(output);
+    const HallGap& model = *model_owner;
+    constexpr std::size_t kStride = 3;  // gap, coil voltage, and one element the model does not read
+    const std::array<double, 5 * kStride> states{0.0247, 1.0, 9.0,  0.026, 0.5,  9.0, 0.049, -2.0, 9.0,
+                                                 0.010,  3.0, 9.0,  0.0301, 0.0, 9.0};
+    std::array<double, 5> batch{};
+    model.evaluate_points(states.data(), kStride, 5, batch.data());
+    for (std::size_t i = 0; i < 5; ++i) {
+      double alone = 0.0;
+      model.evaluate(states.data() + i * kStride, &alone);
+      EXPECT_EQ(batch[i], alone) << "point " << i << (output == HallGap::Output::gap ? ", gap" : ", hall_voltage");
+    }
+  }
+}
+
 TEST(HallGapModel, ClampLimitsFollowTheConversionApplied) {
   // The range ends are taken once per apply(): a model reconfigured with a narrower C_H
   // range clamps and goes flat at the new ends, not at the ones it was constructed with.

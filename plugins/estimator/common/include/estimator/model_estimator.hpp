@@ -142,6 +142,11 @@ class ModelEstimator : public Block, public EstimatorState {
   void propagate(const double* x, const double* u, double* x_next) const noexcept {
     process_->propagate(dt_, x, u, x_next);
   }
+  /// propagate() for `count` states of n_ elements one after another (a sigma-point filter's
+  /// points), in one call to the model.
+  void propagate_points(const double* x, std::size_t count, double* x_next) const noexcept {
+    process_->propagate_points(dt_, x, count, u_.data(), x_next);
+  }
   /// y = h(x) with the measurement model's inputs taken from x and u_. Inline: the UKF calls it
   /// for each sigma point, and from this library's object code it would go through the PLT.
   void measure(const double* x, double* y) const noexcept {
@@ -150,6 +155,14 @@ class ModelEstimator : public Block, public EstimatorState {
       return;
     }
     measure_gathered(x, y);
+  }
+  /// measure() for `count` states of n_ elements one after another, the results m_ apart.
+  void measure_points(const double* x, std::size_t count, double* y) const noexcept {
+    if (measurement_reads_leading_states_) {  // each point's first elements are h's state
+      measurement_->evaluate_points(x, n_, count, y);
+      return;
+    }
+    for (std::size_t i = 0; i < count; ++i) measure_gathered(x + i * n_, y + i * m_);
   }
   /// y = h(x) and H = dh/dx (m x n; the columns of elements taken from u are dropped).
   void measure_jacobian(const double* x, double* y, ObservationMatrix& H) const noexcept {
