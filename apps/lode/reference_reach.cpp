@@ -2,18 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
+
+#include "lode/sdk/text.hpp"
 
 namespace lode::cli {
 
 namespace {
-
-std::string number(double v) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%g", v);
-  return text;
-}
 
 /// Where each element of the reference is furthest below and above zero, and when.
 struct Reach {
@@ -70,9 +65,9 @@ std::vector<std::string> reference_outside_envelope(Pipeline& pipeline) {
         const double value = above ? reach.high[i] : reach.low[i];
         const double at_s = static_cast<double>(above ? reach.high_ns[i] : reach.low_ns[i]) * 1e-9;
         const std::string& unit = elements[i].unit;
-        warnings.push_back(reference->name() + "." + elements[i].name + " reaches " + number(value) + " " + unit +
-                           " at t = " + number(at_s) + " s; the envelope keeps " + bound.signal.name() + "." +
-                           theirs[j].name + " within [" + number(bound.min[j]) + ", " + number(bound.max[j]) +
+        warnings.push_back(reference->name() + "." + elements[i].name + " reaches " + number_text(value) + " " + unit +
+                           " at t = " + number_text(at_s) + " s; the envelope keeps " + bound.signal.name() + "." +
+                           theirs[j].name + " within [" + number_text(bound.min[j]) + ", " + number_text(bound.max[j]) +
                            "] " + unit + ": the run will fault when the stage follows it");
       }
     }

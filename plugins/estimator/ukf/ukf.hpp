@@ -328,10 +328,15 @@ class UnscentedCore {
     }
   }
 
+  /// Whether a model callable takes every point in one call, model(points, count, results),
+  /// rather than one, model(point, result).
+  template <class Model>
+  static constexpr bool kTakesPoints = std::is_invocable_v<Model&, const double*, std::size_t, double*>;
+
   /// model at one point, whichever form it takes.
   template <class Model>
   static void one_point(Model& model, const double* point, double* result) noexcept {
-    if constexpr (std::is_invocable_v<Model&, const double*, std::size_t, double*>) {
+    if constexpr (kTakesPoints<Model>) {
       model(point, std::size_t{1}, result);
     } else {
       model(point, result);
@@ -345,7 +350,7 @@ class UnscentedCore {
   [[gnu::always_inline]] void each_point(Model& model, const double* points, double* results, int width) const noexcept {
     const int N = n();
     const int count = 2 * N + 1;
-    if constexpr (std::is_invocable_v<Model&, const double*, std::size_t, double*>) {
+    if constexpr (kTakesPoints<Model>) {
       model(points, static_cast<std::size_t>(count), results);
     } else {
       for (int i = 0; i < count; ++i) model(points + i * N, results + i * width);

@@ -316,7 +316,7 @@ void Suspension::propagate(double dt_s, const double* x, const double* u, double
 void Suspension::propagate_points(double dt_s, const double* x, std::size_t count, const double* u,
                                   double* x_next) const noexcept {
   if (config_.process_discretization == SuspensionDiscretization::rk4) {
-    for (std::size_t i = 0; i < count; ++i) propagate(dt_s, x + i * kStateSize, u, x_next + i * kStateSize);
+    ProcessModel::propagate_points(dt_s, x, count, u, x_next);  // point by point
     return;
   }
   // The points are independent: one loop, each point's divisions free to overlap the next's.

@@ -62,7 +62,7 @@ void HallGap::evaluate_points(const double* states, std::size_t stride, std::siz
       y[i] = reported_gap_m(1e3 * states[i * stride + kGap], nearest_mm_, farthest_mm_);
     return;
   }
-  for (std::size_t i = 0; i < count; ++i) evaluate(states + i * stride, y + i);
+  MeasurementModel::evaluate_points(states, stride, count, y);  // point by point
 }
 
 void HallGap::jacobian(const double* state, double* y, double* H) const noexcept {
