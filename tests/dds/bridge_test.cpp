@@ -681,8 +681,10 @@ TEST(Bridge, ThePublisherRunsAtItsPriorityOrSaysWhyNot) {
 TEST(Bridge, TheDoorbellWakesThePublisherLongBeforeItsPollingPeriod) {
   // publish_period_ms at its maximum, 100 ms: a publisher that only polled (here every 50 ms,
   // for the timing topic at 20 Hz) would deliver a sample 25 ms after its capture in the
-  // median. Woken by the RT thread's doorbell it delivers within a fraction of a
-  // millisecond; 5 ms leaves room for a very busy host.
+  // median. Woken by the RT thread's doorbell it delivers within a fraction of a millisecond
+  // on an idle host, but this test runs beside others on two CPUs (a QEMU guest, a browser)
+  // and its publisher is an ordinary thread: one such run measured a median of 5.1 ms. Half
+  // of polling's median still tells the two apart.
   const int kDomain = lode::testing::private_dds_domain();
   constexpr std::uint64_t kCycles = 1500;
   Rig rig(pipeline_yaml(kDomain, "  publish_period_ms: 100\n"), /*start_bridge=*/false);
@@ -722,7 +724,7 @@ TEST(Bridge, TheDoorbellWakesThePublisherLongBeforeItsPollingPeriod) {
   std::cout << "[ measured ] publish_period_ms 100: capture->callback latency p50 " << percentile(latency_us, 0.5)
             << " us, p99 " << percentile(latency_us, 0.99) << " us; " << tap.doorbell().sequence()
             << " rings, " << tap.doorbell().wakes() << " with a system call\n";
-  EXPECT_LT(percentile(latency_us, 0.5), 5000.0) << "the publisher waited for its polling period: the doorbell did not wake it";
+  EXPECT_LT(percentile(latency_us, 0.5), 12500.0) << "the publisher waited for its polling period: the doorbell did not wake it";
   EXPECT_EQ(tap.doorbell().sequence(), executed) << "one ring per cycle that published";
 }
 
