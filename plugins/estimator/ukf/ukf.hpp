@@ -203,22 +203,12 @@ class UnscentedCore {
   template <class F, class Cov>
   [[gnu::always_inline]] bool predict(F&& f, const Cov& Q) noexcept {
     if (sums_ == Sums::about_centre) return predict_about_centre(f, Q);
-    std::array<double, kN> x, base, next;  // the first n_ of each are written before they are read
-    if (sums_ == Sums::about_centre) {
-      for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(centre_(j));
-      one_point(f, x.data(), base.data());
-      for (int i = 1; i < points(); ++i) {
-        for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(centre_(j)) + static_cast<double>(chi_(j, i));
-        one_point(f, x.data(), next.data());
-        for (int j = 0; j < n(); ++j) chi_(j, i) = static_cast<Scalar>(next[j] - base[j]);
-      }
-      for (int j = 0; j < n(); ++j) centre_(j) = static_cast<Scalar>(base[j]);
-    } else {
-      for (int i = 0; i < points(); ++i) {
-        for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(chi_(j, i));
-        one_point(f, x.data(), next.data());
-        for (int j = 0; j < n(); ++j) chi_(j, i) = static_cast<Scalar>(next[j]);
-      }
+    // Raw sums: the points themselves, not deviations from a centre.
+    std::array<double, kN> x, next;  // the first n_ of each are written before they are read
+    for (int i = 0; i < points(); ++i) {
+      for (int j = 0; j < n(); ++j) x[j] = static_cast<double>(chi_(j, i));
+      one_point(f, x.data(), next.data());
+      for (int j = 0; j < n(); ++j) chi_(j, i) = static_cast<Scalar>(next[j]);
     }
     Vector mean;
     Matrix cov;
